@@ -1,0 +1,10 @@
+# Warnings and optimisation flags shared by every fiberfem target, through one INTERFACE
+# target instead of global flags.
+add_library(fiberfem_compile_options INTERFACE)
+add_library(fiberfem::compile_options ALIAS fiberfem_compile_options)
+target_compile_options(fiberfem_compile_options INTERFACE
+  $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wno-maybe-uninitialized>)
+if(FIBERFEM_NATIVE)
+  target_compile_options(fiberfem_compile_options INTERFACE
+    $<$<CXX_COMPILER_ID:GNU,Clang>:-march=native>)
+endif()

@@ -1,0 +1,55 @@
+#pragma once
+/// @file Linear solvers for the step's symmetric positive definite system (PHYSICS.md section 5).
+
+#include "core/sparse_system.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace fiberfem::core {
+
+enum class LinearSolverKind {
+  pcg,     ///< Preconditioned conjugate gradient (block-Jacobi 3x3 preconditioner).
+  direct,  ///< Sparse Cholesky (CHOLMOD supernodal when built with it, else Eigen LDLT).
+};
+
+/// Settings of the linear solve. Defaults are the engine's `balanced` choice.
+struct SolverSettings {
+  LinearSolverKind method = LinearSolverKind::pcg;  ///< pcg | direct. Default pcg.
+  double tolerance = 1e-6;    ///< PCG relative residual |r|/|b|, in (0, 1). Default 1e-6.
+  int max_iterations = 500;   ///< PCG iteration cap, >= 1. Default 500.
+  bool warm_start = true;     ///< PCG starts from the last velocity. Default true.
+  /// A step whose relative residual ends above this counts as failed (rolled back and
+  /// retried with substeps), in (0, inf). Default 1e-2.
+  double failure_residual = 1e-2;
+  /// @throws std::invalid_argument naming the field.
+  void validate() const;
+};
+
+/// Result of one solve.
+struct SolveStats {
+  int iterations = 0;          ///< PCG iterations (1 for the direct solver).
+  double relative_residual = 0;  ///< |A x - b| / |b|.
+  bool ok = false;             ///< Finite result and (for PCG) converged to tolerance.
+};
+
+/// Solves A x = b for the engine's SPD matrices. The pattern is analysed once.
+class LinearSolver {
+ public:
+  virtual ~LinearSolver() = default;
+  /// Solves with `x` as the initial guess (PCG) or ignoring it (direct).
+  virtual SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
+  virtual std::string name() const = 0;
+  /// Node blocks of the free DOFs for block preconditioners: rows starts[k] .. starts[k+1]-1
+  /// belong to one node. Ignored by solvers that need none.
+  virtual void set_blocks(std::vector<int> /*starts*/) {}
+};
+
+/// Makes the solver for `settings` (validated).
+std::unique_ptr<LinearSolver> make_linear_solver(const SolverSettings& settings);
+
+/// Whether the direct solver uses CHOLMOD in this build.
+bool direct_solver_uses_cholmod();
+
+}  // namespace fiberfem::core

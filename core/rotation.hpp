@@ -1,0 +1,31 @@
+#pragma once
+/// @file Rotation extraction from a deformation gradient (PHYSICS.md section 4).
+
+#include "core/types.hpp"
+
+#include <Eigen/Geometry>
+
+namespace fiberfem::core {
+
+/// How the rotation part of F is extracted. Both return a proper rotation (det = +1), also
+/// for inverted elements (det F <= 0), and both return the rotation that maximises
+/// trace(R^T F) over SO(3), so they agree wherever that maximiser is unique.
+enum class RotationMethod {
+  /// 3x3 SVD with the sign fix of Irving, Teran and Fedkiw (2004). Exact, the reference.
+  svd,
+  /// Iterative quaternion polar extraction of Mueller et al. (2016), warm-started from the
+  /// element's previous rotation. Cheaper when the rotation changes little per step.
+  polar,
+};
+
+/// Proper rotation of F by modified SVD: F = U S V^T with the sign of the smallest singular
+/// value flipped when U or V is a reflection, R = U V^T.
+Mat3 rotation_svd(const Mat3& F);
+
+/// Proper rotation of F by quaternion iteration, starting from and updating `q`.
+/// Stops when the update angle is below `tolerance_rad` or after `max_iterations`.
+/// @return the number of iterations used.
+int rotation_polar(const Mat3& F, Eigen::Quaterniond& q, int max_iterations = 20,
+                   double tolerance_rad = 1e-12);
+
+}  // namespace fiberfem::core

@@ -1,0 +1,413 @@
+#include "core/simulator.hpp"
+
+#include "core/corotation.hpp"
+#include "core/element.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace fiberfem::core {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// One cache line per thread for reductions inside the coloured loops.
+struct alignas(64) ThreadAcc {
+  double energy = 0;
+  int inverted = 0;
+};
+
+}  // namespace
+
+const char* to_string(StepStatus s) {
+  switch (s) {
+    case StepStatus::ok: return "ok";
+    case StepStatus::recovered: return "recovered";
+    case StepStatus::failed: return "failed";
+  }
+  return "?";
+}
+
+void SimulatorSettings::validate() const {
+  if (!(dt_s > 0 && dt_s <= 10))
+    throw std::invalid_argument("simulator: dt_s must be in (0, 10] s, got " + std::to_string(dt_s));
+  solver.validate();
+  if (max_substep_halvings < 0 || max_substep_halvings > 12)
+    throw std::invalid_argument("simulator: max_substep_halvings must be in [0, 12], got " +
+                                std::to_string(max_substep_halvings));
+  if (!(max_inverted_fraction > 0 && max_inverted_fraction <= 1))
+    throw std::invalid_argument("simulator: max_inverted_fraction must be in (0, 1], got " +
+                                std::to_string(max_inverted_fraction));
+  if (threads < 0) throw std::invalid_argument("simulator: threads must be >= 0, got " + std::to_string(threads));
+}
+
+Simulator::Simulator(Model model, SimulatorSettings settings)
+    : model_((model.validate(), std::move(model))),
+      settings_((settings.validate(), settings)),
+      sys_(model_.mesh, model_.fixed_dofs) {
+  if (settings_.threads > 0) omp_set_num_threads(settings_.threads);
+  caches_.build(model_);
+  const int ne = model_.mesh.num_elements();
+  beta_e_.assign(static_cast<size_t>(ne), 0.0);
+  if (!model_.region_damping.empty())
+    for (int e = 0; e < ne; ++e)
+      beta_e_[static_cast<size_t>(e)] =
+          model_.region_damping[static_cast<size_t>(model_.mesh.regions()[static_cast<size_t>(e)])].stiffness_s;
+  update_node_masses();
+  f_ext_ = model_.external_forces();
+  solver_ = make_linear_solver(settings_.solver);
+  solver_->set_blocks(sys_.node_block_starts());
+  R_.assign(static_cast<size_t>(ne), Mat3::Identity());
+  q_.assign(static_cast<size_t>(ne), Eigen::Quaterniond::Identity());
+  reset();
+}
+
+void Simulator::update_node_masses() {
+  mass_ = model_.lumped_node_masses();
+  mass_alpha_ = Eigen::VectorXd::Zero(model_.mesh.num_nodes());
+  if (model_.region_damping.empty()) return;
+  for (int e = 0; e < model_.mesh.num_elements(); ++e) {
+    const int r = model_.mesh.regions()[static_cast<size_t>(e)];
+    const double me = model_.region_materials[static_cast<size_t>(r)].density_kg_m3() * model_.mesh.rest_volume(e);
+    const double alpha = model_.region_damping[static_cast<size_t>(r)].mass_1_s;
+    for (int n : model_.mesh.tets()[static_cast<size_t>(e)]) mass_alpha_(n) += 0.25 * alpha * me;
+  }
+}
+
+void Simulator::reset() {
+  const int n = model_.mesh.num_nodes();
+  x_ = Eigen::Map<const Eigen::VectorXd>(model_.mesh.rest_positions().data(), 3 * n);
+  v_ = Eigen::VectorXd::Zero(3 * n);
+  std::fill(R_.begin(), R_.end(), Mat3::Identity());
+  std::fill(q_.begin(), q_.end(), Eigen::Quaterniond::Identity());
+  vfree_ = Eigen::VectorXd::Zero(sys_.num_free());
+  time_s_ = 0;
+  steps_ = 0;
+}
+
+void Simulator::apply_fixed() {
+  if (model_.fixed_dofs.empty()) return;
+  const auto& rest = model_.mesh.rest_positions();
+  for (int d = 0; d < sys_.num_dofs(); ++d)
+    if (model_.fixed_dofs[static_cast<size_t>(d)]) {
+      x_(d) = rest.data()[d];
+      v_(d) = 0;
+    }
+}
+
+void Simulator::set_state(const Positions& x, const Positions& v) {
+  const int n = model_.mesh.num_nodes();
+  if (x.cols() != n || v.cols() != n)
+    throw std::invalid_argument("set_state: expected " + std::to_string(n) + " nodes");
+  if (!x.allFinite() || !v.allFinite()) throw std::invalid_argument("set_state: non-finite values");
+  x_ = Eigen::Map<const Eigen::VectorXd>(x.data(), 3 * n);
+  v_ = Eigen::Map<const Eigen::VectorXd>(v.data(), 3 * n);
+  apply_fixed();
+  vfree_ = sys_.restrict_to_free(v_);
+}
+
+// Linearised backward Euler in velocity form (PHYSICS.md section 5), per element e:
+//   A = sum_e [(1 + h alpha_e) M_e + (h beta_e + h^2) R K^e R^T]
+//   b = M v_n + h (f_ext + f_el(x_n) + f_active),  f_el = -R K^e (R^T x - X),
+//   f_active = -T_a R g^e (section 6); then x_{n+1} = x_n + h v_{n+1}.
+bool Simulator::advance(double h, StepReport& r, std::string& why) {
+  const int ne = model_.mesh.num_elements();
+  const int nthreads = omp_get_max_threads();
+  std::vector<ThreadAcc> acc(static_cast<size_t>(nthreads));
+
+  // Phase 1: rotations (embarrassingly parallel).
+  auto t0 = Clock::now();
+  const bool polar = settings_.rotation == RotationMethod::polar;
+  const bool corot = settings_.corotation;
+#pragma omp parallel for schedule(static)
+  for (int e = 0; e < ne; ++e) {
+    const size_t i = static_cast<size_t>(e);
+    const Tet& t = model_.mesh.tets()[i];
+    Mat3 Ds;
+    for (int j = 0; j < 3; ++j) Ds.col(j) = x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x_.segment<3>(3 * t[0]);
+    const Mat3 F = Ds * caches_.Dm_inv[i];
+    if (F.determinant() <= 0) acc[static_cast<size_t>(omp_get_thread_num())].inverted += 1;
+    if (!corot) {
+      R_[i] = Mat3::Identity();
+      continue;
+    }
+    if (polar) {
+      rotation_polar(F, q_[i]);
+      R_[i] = q_[i].toRotationMatrix();
+    } else {
+      R_[i] = rotation_svd(F);
+    }
+  }
+  r.time.rotations_s += seconds_since(t0);
+  int inverted = 0;
+  for (auto& a : acc) inverted += a.inverted;
+  r.inverted_elements = inverted;
+
+  // Phase 2: assembly of A and of the elastic and active forces.
+  t0 = Clock::now();
+  sys_.zero_matrix();
+  f_.setZero(sys_.num_dofs());
+  const bool active = !active_.empty();
+  sys_.assemble(
+      [&](int e, Mat12& Ke, Vec12& fe) {
+        const size_t i = static_cast<size_t>(e);
+        const Mat3& R = R_[i];
+        const Mat12& K = caches_.K[i];
+        const Tet& t = model_.mesh.tets()[i];
+        Vec12 u;
+        for (int a = 0; a < 4; ++a)
+          u.segment<3>(3 * a) = R.transpose() * x_.segment<3>(3 * t[static_cast<size_t>(a)]) - caches_.X[i].segment<3>(3 * a);
+        const Vec12 Ku = K * u;
+        acc[static_cast<size_t>(omp_get_thread_num())].energy += 0.5 * u.dot(Ku);
+        Vec12 floc = -Ku;
+        if (active) floc -= active_[i] * caches_.g[i];
+        for (int a = 0; a < 4; ++a) fe.segment<3>(3 * a) = R * floc.segment<3>(3 * a);
+        const double c = h * beta_e_[i] + h * h;
+        for (int a = 0; a < 4; ++a)
+          for (int b = a; b < 4; ++b) {
+            const Mat3 blk = c * (R * K.block<3, 3>(3 * a, 3 * b) * R.transpose());
+            Ke.block<3, 3>(3 * a, 3 * b) = blk;
+            if (b != a) Ke.block<3, 3>(3 * b, 3 * a) = blk.transpose();
+          }
+      },
+      f_);
+  double* values = sys_.matrix().valuePtr();
+  const auto& fi = sys_.free_index();
+  const int nn = model_.mesh.num_nodes();
+  rhs_.resize(sys_.num_free());
+  for (int n = 0; n < nn; ++n) {
+    const double md = mass_(n) + h * mass_alpha_(n);
+    for (int c = 0; c < 3; ++c) {
+      const int k = fi[static_cast<size_t>(3 * n + c)];
+      if (k < 0) continue;
+      values[sys_.diagonal_index()[static_cast<size_t>(k)]] += md;
+      rhs_(k) = mass_(n) * v_(3 * n + c) + h * (f_ext_(3 * n + c) + f_(3 * n + c));
+    }
+  }
+  double elastic = 0;
+  for (auto& a : acc) elastic += a.energy;
+  r.elastic_energy_j = elastic;
+  double kinetic = 0;
+  for (int n = 0; n < nn; ++n) kinetic += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
+  r.kinetic_energy_j = kinetic;
+  r.time.assembly_s += seconds_since(t0);
+
+  // Phase 3: solve for the new velocity.
+  t0 = Clock::now();
+  if (!settings_.solver.warm_start || vfree_.size() != sys_.num_free()) vfree_ = sys_.restrict_to_free(v_);
+  const SolveStats st = solver_->solve(sys_.matrix(), rhs_, vfree_);
+  r.time.solve_s += seconds_since(t0);
+  r.solver_iterations += st.iterations;
+  r.solver_residual = std::max(r.solver_residual, st.relative_residual);
+  if (!vfree_.allFinite()) {
+    why = "linear solve produced NaN/Inf";
+    return false;
+  }
+  if (!(st.relative_residual <= settings_.solver.failure_residual)) {
+    why = "linear solve residual " + std::to_string(st.relative_residual) + " above failure_residual";
+    return false;
+  }
+  if (inverted > settings_.max_inverted_fraction * ne) {
+    why = std::to_string(inverted) + " inverted elements, above max_inverted_fraction";
+    return false;
+  }
+  sys_.scatter_free(vfree_, v_);
+  x_ += h * v_;
+  if (!x_.allFinite()) {
+    why = "positions became NaN/Inf";
+    return false;
+  }
+  time_s_ += h;
+  return true;
+}
+
+StepReport Simulator::step() {
+  const auto t0 = Clock::now();
+  StepReport r;
+  const Eigen::VectorXd x0 = x_, v0 = v_, vfree0 = vfree_;
+  const std::vector<Eigen::Quaterniond> q0 = settings_.rotation == RotationMethod::polar ? q_ : std::vector<Eigen::Quaterniond>{};
+  const double t_start = time_s_;
+  std::string why;
+  for (int level = 0; level <= settings_.max_substep_halvings; ++level) {
+    const int nsub = 1 << level;
+    const double h = settings_.dt_s / nsub;
+    StepReport attempt;
+    attempt.time = r.time;
+    bool ok = true;
+    for (int s = 0; s < nsub && ok; ++s) {
+      StepReport sub;
+      sub.time = attempt.time;
+      ok = advance(h, sub, why);
+      attempt.time = sub.time;
+      attempt.solver_iterations += sub.solver_iterations;
+      attempt.solver_residual = std::max(attempt.solver_residual, sub.solver_residual);
+      attempt.inverted_elements = sub.inverted_elements;
+      if (s == 0) {
+        attempt.kinetic_energy_j = sub.kinetic_energy_j;
+        attempt.elastic_energy_j = sub.elastic_energy_j;
+      }
+    }
+    r.time = attempt.time;
+    if (ok) {
+      const PhaseTimes times = r.time;
+      const std::string msg = r.message;
+      r = attempt;
+      r.time = times;
+      r.message = msg;
+      r.substeps = nsub;
+      r.attempts = level + 1;
+      r.status = level == 0 ? StepStatus::ok : StepStatus::recovered;
+      break;
+    }
+    // Roll back and retry with twice the substeps.
+    r.message += (r.message.empty() ? "" : "; ") + std::string("dt/") + std::to_string(nsub) + ": " + why;
+    x_ = x0;
+    v_ = v0;
+    vfree_ = vfree0;
+    if (!q0.empty()) q_ = q0;
+    time_s_ = t_start;
+    r.attempts = level + 1;
+    r.status = StepStatus::failed;
+  }
+  if (r.status != StepStatus::failed) ++steps_;
+  double vmax2 = 0;
+  for (int n = 0; n < model_.mesh.num_nodes(); ++n) vmax2 = std::max(vmax2, v_.segment<3>(3 * n).squaredNorm());
+  r.max_speed_m_s = std::sqrt(vmax2);
+  r.time_s = time_s_;
+  r.time.total_s = seconds_since(t0);
+  return r;
+}
+
+Energies Simulator::energies() const {
+  Energies en;
+  const int ne = model_.mesh.num_elements();
+  double elastic = 0;
+#pragma omp parallel for schedule(static) reduction(+ : elastic)
+  for (int e = 0; e < ne; ++e) {
+    const size_t i = static_cast<size_t>(e);
+    const Vec12 xe = gather(positions(), model_.mesh.tets()[i]);
+    const Mat3 F = deformation_gradient(xe, caches_.Dm_inv[i]);
+    const Mat3 R = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
+    elastic += corotated_energy(R, caches_.K[i], xe, caches_.X[i]);
+  }
+  en.elastic_j = elastic;
+  for (int n = 0; n < model_.mesh.num_nodes(); ++n) {
+    en.kinetic_j += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
+    en.gravity_j -= mass_(n) * model_.loads.gravity_m_s2.dot(x_.segment<3>(3 * n));
+  }
+  return en;
+}
+
+int Simulator::count_inverted() const {
+  int count = 0;
+  for (int e = 0; e < model_.mesh.num_elements(); ++e) {
+    const size_t i = static_cast<size_t>(e);
+    if (deformation_gradient(gather(positions(), model_.mesh.tets()[i]), caches_.Dm_inv[i]).determinant() <= 0) ++count;
+  }
+  return count;
+}
+
+void Simulator::set_region_material(int region, const Material& material) {
+  if (region < 0 || region >= static_cast<int>(model_.region_materials.size()))
+    throw std::invalid_argument("set_region_material: no region " + std::to_string(region));
+  model_.region_materials[static_cast<size_t>(region)] = material;
+  std::vector<int> elems;
+  for (int e = 0; e < model_.mesh.num_elements(); ++e)
+    if (model_.mesh.regions()[static_cast<size_t>(e)] == region) elems.push_back(e);
+  caches_.rebuild(model_, elems);
+  update_node_masses();
+  f_ext_ = model_.external_forces();
+}
+
+void Simulator::set_region_damping(int region, const RayleighDamping& damping) {
+  damping.validate();
+  if (region < 0 || region >= model_.mesh.num_regions())
+    throw std::invalid_argument("set_region_damping: no region " + std::to_string(region));
+  if (model_.region_damping.empty()) model_.region_damping.assign(static_cast<size_t>(model_.mesh.num_regions()), {});
+  model_.region_damping[static_cast<size_t>(region)] = damping;
+  for (int e = 0; e < model_.mesh.num_elements(); ++e)
+    if (model_.mesh.regions()[static_cast<size_t>(e)] == region) beta_e_[static_cast<size_t>(e)] = damping.stiffness_s;
+  update_node_masses();
+}
+
+void Simulator::set_fibers(std::vector<Vec3> fibers) {
+  const int ne = model_.mesh.num_elements();
+  if (static_cast<int>(fibers.size()) != ne)
+    throw std::invalid_argument("set_fibers: " + std::to_string(fibers.size()) + " fibers for " +
+                                std::to_string(ne) + " elements");
+  for (int e = 0; e < ne; ++e) {
+    const double n = fibers[static_cast<size_t>(e)].norm();
+    if (!(std::isfinite(n) && n > 1e-12))
+      throw std::invalid_argument("set_fibers: element " + std::to_string(e) + " has a zero or non-finite fiber");
+    fibers[static_cast<size_t>(e)] /= n;
+  }
+  std::vector<int> changed;
+  for (int e = 0; e < ne; ++e) {
+    const size_t i = static_cast<size_t>(e);
+    if (fibers[i] == model_.fibers[i]) continue;
+    model_.fibers[i] = fibers[i];
+    const bool iso = model_.region_materials[static_cast<size_t>(model_.mesh.regions()[i])].is_isotropic();
+    if (!iso || !caches_.g.empty()) changed.push_back(e);
+  }
+  caches_.rebuild(model_, changed);
+}
+
+void Simulator::set_time_step(double dt_s) {
+  SimulatorSettings s = settings_;
+  s.dt_s = dt_s;
+  s.validate();
+  settings_ = s;
+}
+
+void Simulator::set_gravity(const Vec3& g) {
+  if (!g.allFinite()) throw std::invalid_argument("set_gravity: gravity must be finite");
+  model_.loads.gravity_m_s2 = g;
+  f_ext_ = model_.external_forces();
+}
+
+void Simulator::set_loads(const Loads& loads) {
+  Model probe = model_;
+  probe.loads = loads;
+  probe.validate();
+  model_.loads = loads;
+  f_ext_ = model_.external_forces();
+}
+
+void Simulator::set_solver_settings(const SolverSettings& s) {
+  s.validate();
+  settings_.solver = s;
+  solver_ = make_linear_solver(s);
+  solver_->set_blocks(sys_.node_block_starts());
+}
+
+void Simulator::set_rotation_method(RotationMethod m) {
+  if (m == RotationMethod::polar && settings_.rotation != RotationMethod::polar)
+    for (size_t i = 0; i < R_.size(); ++i) q_[i] = Eigen::Quaterniond(R_[i]);
+  settings_.rotation = m;
+}
+
+void Simulator::set_corotation(bool on) { settings_.corotation = on; }
+
+void Simulator::set_active_tension(std::vector<double> tension_pa) {
+  if (tension_pa.empty()) {
+    active_.clear();
+    return;
+  }
+  if (static_cast<int>(tension_pa.size()) != model_.mesh.num_elements())
+    throw std::invalid_argument("set_active_tension: " + std::to_string(tension_pa.size()) +
+                                " values for " + std::to_string(model_.mesh.num_elements()) + " elements");
+  for (size_t e = 0; e < tension_pa.size(); ++e)
+    if (!std::isfinite(tension_pa[e]))
+      throw std::invalid_argument("set_active_tension: element " + std::to_string(e) + " is not finite");
+  if (caches_.g.empty()) caches_.build_active(model_);
+  active_ = std::move(tension_pa);
+}
+
+}  // namespace fiberfem::core

@@ -1,0 +1,148 @@
+#pragma once
+/// @file The dynamic engine: corotated, linearised implicit backward Euler
+/// (PHYSICS.md sections 4 and 5) with rollback and substepping on failure.
+
+#include "core/element_cache.hpp"
+#include "core/linear_solver.hpp"
+#include "core/model.hpp"
+#include "core/rotation.hpp"
+#include "core/sparse_system.hpp"
+
+#include <Eigen/Geometry>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace fiberfem::core {
+
+/// Settings of the time stepper. Every field has a default; `validate()` names a bad one.
+struct SimulatorSettings {
+  double dt_s = 1.0 / 60.0;  ///< Time step, s, in (0, 10]. Default 1/60.
+  SolverSettings solver;     ///< Linear solver; see SolverSettings.
+  RotationMethod rotation = RotationMethod::svd;  ///< svd | polar. Default svd.
+  bool corotation = true;    ///< false: plain linear FEM (R = I), the baseline. Default true.
+  /// On failure a step is retried with 2, 4, ... 2^k substeps, k up to this, in [0, 12].
+  /// Default 4 (16 substeps).
+  int max_substep_halvings = 4;
+  /// A step that leaves more than this fraction of elements inverted counts as failed,
+  /// in (0, 1]. Default 1 (inversion alone never fails a step; it is always counted).
+  double max_inverted_fraction = 1.0;
+  /// OpenMP threads, 0 = all cores. Default 0.
+  int threads = 0;
+  /// @throws std::invalid_argument naming the field.
+  void validate() const;
+};
+
+enum class StepStatus {
+  ok,         ///< Advanced by one step as asked.
+  recovered,  ///< The full step failed; advanced with substeps.
+  failed,     ///< Every retry failed; the state is rolled back to before the step.
+};
+const char* to_string(StepStatus s);
+
+/// Wall time of the phases of one step, seconds.
+struct PhaseTimes {
+  double rotations_s = 0;  ///< Deformation gradients and rotation extraction.
+  double assembly_s = 0;   ///< Warped stiffness, forces, system matrix and right-hand side.
+  double solve_s = 0;      ///< Linear solve.
+  double total_s = 0;      ///< Whole step, including retries.
+};
+
+/// What one step did. Energies are those of the state the step started from (they come
+/// free with the assembly); `Simulator::energies()` computes the current state's.
+struct StepReport {
+  StepStatus status = StepStatus::ok;
+  int substeps = 1;               ///< Substeps of the accepted attempt.
+  int attempts = 1;               ///< Attempts made (1 + retries).
+  int solver_iterations = 0;      ///< Summed over the accepted attempt's substeps.
+  double solver_residual = 0;     ///< Largest relative residual of the accepted attempt.
+  double kinetic_energy_j = 0;
+  double elastic_energy_j = 0;
+  int inverted_elements = 0;      ///< Elements with det F <= 0 at the last substep.
+  double max_speed_m_s = 0;       ///< Largest node speed after the step.
+  double time_s = 0;              ///< Simulation time after the step.
+  PhaseTimes time;
+  std::string message;            ///< Why a retry happened or the step failed.
+};
+
+/// Energies of a state, joules.
+struct Energies {
+  double kinetic_j = 0;
+  double elastic_j = 0;
+  double gravity_j = 0;  ///< -sum m g.x (relative to the origin).
+};
+
+class Simulator {
+ public:
+  /// Validates the model and settings and precomputes every element cache.
+  /// @throws std::invalid_argument naming what is wrong.
+  Simulator(Model model, SimulatorSettings settings = {});
+
+  /// Advances by dt. Never throws for numerical trouble: see StepReport::status.
+  StepReport step();
+
+  /// Current positions (3 x N), metres, and velocities (3 x N), m/s.
+  Eigen::Map<const Positions> positions() const { return {x_.data(), 3, model_.mesh.num_nodes()}; }
+  Eigen::Map<const Positions> velocities() const { return {v_.data(), 3, model_.mesh.num_nodes()}; }
+  /// Replaces the state (e.g. to start deformed). Fixed DOFs keep their rest position and
+  /// zero velocity. @throws std::invalid_argument on size mismatch or non-finite values.
+  void set_state(const Positions& x, const Positions& v);
+  /// Back to rest, zero velocity, time zero.
+  void reset();
+  double time_s() const { return time_s_; }
+  long step_count() const { return steps_; }
+
+  /// Exact energies of the current state (one pass over the elements).
+  Energies energies() const;
+  /// Elements with det F <= 0 in the current state.
+  int count_inverted() const;
+
+  const Model& model() const { return model_; }
+  const SimulatorSettings& settings() const { return settings_; }
+  const ElementCaches& caches() const { return caches_; }
+  const SparseSystem& system() const { return sys_; }
+  /// Rotation of each element at the start of the last step.
+  const std::vector<Mat3>& rotations() const { return R_; }
+
+  // Changes between steps. Each rebuilds only the caches it touches and validates first.
+  void set_region_material(int region, const Material& material);
+  void set_region_damping(int region, const RayleighDamping& damping);
+  /// Fibers per element (non-zero; normalised here). Rebuilds K^e and g^e of the elements
+  /// whose fiber changed (none for isotropic regions' K^e).
+  void set_fibers(std::vector<Vec3> fibers);
+  void set_time_step(double dt_s);
+  void set_gravity(const Vec3& g_m_s2);
+  void set_loads(const Loads& loads);
+  void set_solver_settings(const SolverSettings& s);
+  void set_rotation_method(RotationMethod m);
+  void set_corotation(bool on);
+  /// Active tension per element (Pa) along the current fiber (PHYSICS.md section 6);
+  /// an empty vector turns contraction off (no per-step cost).
+  void set_active_tension(std::vector<double> tension_pa);
+
+ private:
+  bool advance(double h, StepReport& r, std::string& why);
+  void update_node_masses();
+  void apply_fixed();
+
+  Model model_;
+  SimulatorSettings settings_;
+  ElementCaches caches_;
+  SparseSystem sys_;
+  std::unique_ptr<LinearSolver> solver_;
+  std::vector<double> beta_e_;      // per element stiffness damping, s
+  Eigen::VectorXd mass_;            // per node, kg
+  Eigen::VectorXd mass_alpha_;      // per node, sum alpha_e m_e / 4, kg/s
+  Eigen::VectorXd f_ext_;           // 3N
+  std::vector<double> active_;      // per element tension, Pa (empty: off)
+  Eigen::VectorXd x_, v_;           // 3N
+  std::vector<Mat3> R_;
+  std::vector<Eigen::Quaterniond> q_;
+  double time_s_ = 0;
+  long steps_ = 0;
+  // work
+  Eigen::VectorXd f_, rhs_, vfree_;
+};
+
+}  // namespace fiberfem::core

@@ -1,0 +1,100 @@
+#pragma once
+/// @file The one sparse assembly of the engine: a fixed sparsity pattern over the free
+/// degrees of freedom, per-element scatter indices, and a parallel assembly over chunks of
+/// neighbouring elements coloured so that no two chunks of a colour share a node.
+
+#include "core/mesh.hpp"
+
+#include <Eigen/SparseCore>
+
+#include <vector>
+
+namespace fiberfem::core {
+
+/// Row-major sparse matrix type of the engine's linear systems.
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
+
+class SparseSystem {
+ public:
+  /// @param fixed_dofs per-DOF fixed flags (3N) or empty; fixed DOFs are left out.
+  SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>& fixed_dofs,
+               int chunk_size = 32);
+
+  int num_dofs() const { return num_dofs_; }
+  int num_free() const { return num_free_; }
+  /// Free index of each DOF (3N), -1 for fixed ones.
+  const std::vector<int>& free_index() const { return free_index_; }
+  /// The system matrix over free DOFs (full symmetric pattern, both triangles stored).
+  SparseMatrix& matrix() { return A_; }
+  const SparseMatrix& matrix() const { return A_; }
+  /// Position of each free DOF's diagonal entry in the matrix values.
+  const std::vector<int>& diagonal_index() const { return diag_; }
+  /// Node blocks of the free DOFs: rows starts[k] .. starts[k+1]-1 are one node's free
+  /// components (free indices follow DOF order, so a node's free DOFs are consecutive).
+  std::vector<int> node_block_starts() const;
+  /// Number of colours of the parallel assembly.
+  int num_colours() const { return static_cast<int>(colour_chunks_.size()); }
+
+  /// Zeros the matrix values (pattern kept).
+  void zero_matrix();
+  /// Restriction of a full DOF vector to the free DOFs.
+  Eigen::VectorXd restrict_to_free(const Eigen::VectorXd& full) const;
+  /// Writes free values into a full DOF vector (fixed entries untouched).
+  void scatter_free(const Eigen::VectorXd& free, Eigen::VectorXd& full) const;
+
+  /// Parallel element loop. For each element `e`, `kernel(e, Ke, fe)` fills a 12x12 matrix
+  /// and a 12 force vector (and may accumulate per-thread data indexed by `omp_get_thread_num`);
+  /// Ke is added into the matrix (free x free entries) and fe into `f_full` (3N).
+  /// Elements of one colour run concurrently; no two of them share a node.
+  template <class Kernel>
+  void assemble(Kernel&& kernel, Eigen::VectorXd& f_full);
+
+  /// Same chunked, coloured loop without a matrix: `kernel(e)` for each element; safe to
+  /// write per-node data of the element's nodes.
+  template <class Kernel>
+  void for_each_element_coloured(Kernel&& kernel) const;
+
+ private:
+  int num_dofs_ = 0;
+  int num_free_ = 0;
+  std::vector<int> free_index_;
+  std::vector<Tet> tets_;
+  SparseMatrix A_;
+  std::vector<int> diag_;
+  std::vector<int> scatter_;  // 144 per element: value index or -1
+  int chunk_size_ = 32;
+  std::vector<std::vector<int>> colour_chunks_;  // chunk ids per colour
+};
+
+template <class Kernel>
+void SparseSystem::for_each_element_coloured(Kernel&& kernel) const {
+  const int ne = static_cast<int>(tets_.size());
+  for (const std::vector<int>& chunks : colour_chunks_) {
+    const int nc = static_cast<int>(chunks.size());
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int ci = 0; ci < nc; ++ci) {
+      const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
+      const int end = std::min(begin + chunk_size_, ne);
+      for (int e = begin; e < end; ++e) kernel(e);
+    }
+  }
+}
+
+template <class Kernel>
+void SparseSystem::assemble(Kernel&& kernel, Eigen::VectorXd& f_full) {
+  double* values = A_.valuePtr();
+  for_each_element_coloured([&](int e) {
+    Eigen::Matrix<double, 12, 12> Ke;
+    Eigen::Matrix<double, 12, 1> fe;
+    kernel(e, Ke, fe);
+    const int* s = &scatter_[static_cast<size_t>(e) * 144];
+    // Ke is column-major: entry (i, j) at j * 12 + i; scatter_ uses the same layout.
+    const double* k = Ke.data();
+    for (int ij = 0; ij < 144; ++ij)
+      if (s[ij] >= 0) values[s[ij]] += k[ij];
+    const Tet& t = tets_[static_cast<size_t>(e)];
+    for (int a = 0; a < 4; ++a) f_full.segment<3>(3 * t[static_cast<size_t>(a)]) += fe.segment<3>(3 * a);
+  });
+}
+
+}  // namespace fiberfem::core

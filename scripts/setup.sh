@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Set up a fresh Debian 12 machine for fiberfem: install every Debian package the
+# project needs, configure and build. Idempotent: a second call skips what is done.
+#
+#   scripts/setup.sh            install + configure + build (release preset, build/)
+#   FIBERFEM_SKIP_APT=1 ...     skip the package step (packages managed elsewhere)
+set -euo pipefail
+
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$here"
+
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  libeigen3-dev libsuitesparse-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev libpng-dev
+  cyclonedds-dev cyclonedds-tools libhdf5-dev hdf5-tools
+  libosmesa6-dev ffmpeg
+  python3 python3-venv time
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [[ "${FIBERFEM_SKIP_APT:-0}" != 1 && ${#missing[@]} -gt 0 ]]; then
+  echo "setup: installing ${#missing[@]} Debian packages: ${missing[*]}"
+  sudo_cmd=()
+  if [[ $(id -u) -ne 0 ]]; then sudo_cmd=(sudo); fi
+  export DEBIAN_FRONTEND=noninteractive
+  "${sudo_cmd[@]}" apt-get update -q
+  "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+else
+  echo "setup: Debian packages already installed"
+fi
+
+preset="${FIBERFEM_PRESET:-release}"
+if [[ ! -f "build/$preset/build.ninja" ]]; then
+  cmake --preset "$preset"
+fi
+cmake --build --preset "$preset"
+echo "setup: build ready in build/$preset"

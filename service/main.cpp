@@ -1,0 +1,109 @@
+// The `fiberfem` command. `fiberfem run --builtin cantilever` runs the built-in cantilever
+// in batch, with a progress line, and compares its settled tip with the static solution
+// and with beam theory.
+
+#include "core/builtin_scenes.hpp"
+#include "core/simulator.hpp"
+#include "core/static_solver.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <unistd.h>
+
+namespace core = fiberfem::core;
+
+namespace {
+
+int run_builtin(const std::string& scene, double seconds, double dt, const std::string& solver,
+                const std::string& rotation, std::array<int, 3> cells, double tol) {
+  if (scene != "cantilever") {
+    std::cerr << "fiberfem: unknown built-in scene '" << scene << "' (available: cantilever)\n";
+    return 2;
+  }
+  core::CantileverSpec spec;
+  spec.box.size_m = {0.1, 0.01, 0.01};
+  spec.box.cells = cells;
+  spec.damping.mass_1_s = 4.0;
+  core::Model model = core::make_cantilever(spec);
+  core::SimulatorSettings st;
+  st.dt_s = dt;
+  st.solver.method = solver == "direct" ? core::LinearSolverKind::direct : core::LinearSolverKind::pcg;
+  st.solver.tolerance = tol;
+  st.rotation = rotation == "polar" ? core::RotationMethod::polar : core::RotationMethod::svd;
+  core::Simulator sim(model, st);
+  const int tip = [&] {
+    const auto& face = model.mesh.node_set("xmax");
+    int best = face.front();
+    double bd = 1e300;
+    for (int n : face) {
+      const double d = (model.mesh.rest_positions().col(n) - core::Vec3(0.1, 0.005, 0.005)).norm();
+      if (d < bd) bd = d, best = n;
+    }
+    return best;
+  }();
+  std::printf("fiberfem: cantilever 10 x 1 x 1 cm, %d tets, %d nodes, fibers along x, gravity -z, dt %.4g s, %s/%s\n",
+              model.mesh.num_elements(), model.mesh.num_nodes(), dt, solver.c_str(), rotation.c_str());
+  const bool tty = isatty(fileno(stdout));
+  const int steps = static_cast<int>(std::lround(seconds / dt));
+  const auto t0 = std::chrono::steady_clock::now();
+  double work = 0;
+  long iters = 0;
+  int failed = 0;
+  for (int s = 1; s <= steps; ++s) {
+    const core::StepReport r = sim.step();
+    work += r.time.total_s;
+    iters += r.solver_iterations;
+    if (r.status == core::StepStatus::failed) ++failed;
+    if ((tty && s % 10 == 0) || s == steps || (!tty && s % (steps / 5 > 0 ? steps / 5 : 1) == 0)) {
+      std::printf("%st=%6.3f s  step %5d/%d  tip z %+8.3f mm  iters %3d  E_kin %.3e J  %6.0f steps/s%s",
+                  tty ? "\r" : "", r.time_s, s, steps, 1e3 * (sim.positions()(2, tip) - 0.005),
+                  r.solver_iterations, r.kinetic_energy_j, s / work, tty ? "" : "\n");
+      std::fflush(stdout);
+    }
+  }
+  if (tty) std::printf("\n");
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  core::Positions xs;
+  const core::StaticReport sr = core::solve_static(model, xs);
+  const double dyn = sim.positions()(2, tip) - 0.005;
+  const double sta = xs(2, tip) - 0.005;
+  const double q = spec.density_kg_m3 * 9.81 * 0.01 * 0.01;
+  const double beam = -core::cantilever_tip_deflection(0.1, 0.01, 0.01, spec.material.E_L, spec.material.G_L, q, 0);
+  std::printf("summary: %d steps in %.2f s wall (%.0f steps/s, %.1f PCG iterations/step), %d failed steps\n", steps,
+              wall, steps / wall, static_cast<double>(iters) / steps, failed);
+  std::printf("summary: tip deflection after %.1f s: dynamic %.4f mm, static (Newton, %s) %.4f mm, "
+              "Timoshenko beam theory %.4f mm\n",
+              seconds, 1e3 * dyn, sr.converged ? "converged" : "NOT converged", 1e3 * sta, 1e3 * beam);
+  return failed == 0 && sr.converged ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"fiberfem: fiber-incorporated corotational FEM"};
+  app.require_subcommand(1);
+  auto* run = app.add_subcommand("run", "Run a scene in batch (no bus)");
+  std::string builtin = "cantilever", solver = "pcg", rotation = "svd";
+  double seconds = 2.0, dt = 1.0 / 60.0, tol = 1e-6;
+  std::vector<int> cells{20, 2, 2};
+  run->add_option("--builtin", builtin, "Built-in scene: cantilever")->capture_default_str();
+  run->add_option("--until", seconds, "Simulated time, s")->capture_default_str()->check(CLI::PositiveNumber);
+  run->add_option("--dt", dt, "Time step, s")->capture_default_str()->check(CLI::Range(1e-6, 10.0));
+  run->add_option("--solver", solver, "pcg | direct")->capture_default_str()->check(CLI::IsMember({"pcg", "direct"}));
+  run->add_option("--tolerance", tol, "PCG relative tolerance")->capture_default_str()->check(CLI::Range(1e-14, 0.5));
+  run->add_option("--rotation", rotation, "svd | polar")->capture_default_str()->check(CLI::IsMember({"svd", "polar"}));
+  run->add_option("--cells", cells, "Cells along x y z")->expected(3)->capture_default_str()->check(CLI::Range(1, 2000));
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (*run) return run_builtin(builtin, seconds, dt, solver, rotation, {cells[0], cells[1], cells[2]}, tol);
+  } catch (const std::exception& e) {
+    std::cerr << "fiberfem: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,18 @@
+# Fails if any file in core/ includes a header from outside Eigen, OpenMP, the standard
+# library or core/ itself (no file formats, DDS, HDF5, logging, rendering in the engine).
+file(GLOB_RECURSE sources ${CORE_DIR}/*.hpp ${CORE_DIR}/*.cpp)
+set(allowed "^(Eigen/|omp\\.h|core/|[a-z_]+$|cmath|cstdint|cstdio|cstddef|cstdlib|cstring|climits)")
+set(bad "")
+foreach(f ${sources})
+  file(STRINGS ${f} lines REGEX "^[ \t]*#[ \t]*include")
+  foreach(l ${lines})
+    string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]*[<\"]([^>\"]+)[>\"].*" "\\1" inc "${l}")
+    if(NOT inc MATCHES "${allowed}")
+      list(APPEND bad "${f}: ${inc}")
+    endif()
+  endforeach()
+endforeach()
+if(bad)
+  message(FATAL_ERROR "core/ includes headers outside Eigen/OpenMP/std:\n${bad}")
+endif()
+message(STATUS "core/ includes only Eigen, OpenMP, the standard library and itself (${CMAKE_ARGC} ok)")
