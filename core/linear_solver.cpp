@@ -7,6 +7,8 @@
 #include <Eigen/CholmodSupport>
 #endif
 
+#include <dlfcn.h>
+
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -14,7 +16,17 @@
 
 namespace fiberfem::core {
 
+const char* to_string(PreconditionerKind k) {
+  switch (k) {
+    case PreconditionerKind::block_jacobi: return "block_jacobi";
+    case PreconditionerKind::cholesky: return "cholesky";
+  }
+  return "?";
+}
+
 void SolverSettings::validate() const {
+  if (refresh_iterations < 1)
+    throw std::invalid_argument("solver: refresh_iterations must be >= 1, got " + std::to_string(refresh_iterations));
   if (!(tolerance > 0 && tolerance < 1))
     throw std::invalid_argument("solver: tolerance must be in (0, 1), got " + std::to_string(tolerance));
   if (max_iterations < 1)
@@ -101,63 +113,216 @@ class BlockJacobiPreconditioner {
   int n_ = 0;
 };
 
-class PcgSolver final : public LinearSolver {
+/// A sparse Cholesky factorisation of the engine's SPD matrix (stored row-major with both
+/// triangles; being symmetric, the same arrays read as column-major give the same matrix).
+/// CHOLMOD supernodal when built with it, else Eigen's simplicial LLT. The symbolic
+/// analysis is done once per pattern.
+class CholeskyFactor {
  public:
-  explicit PcgSolver(const SolverSettings& s) : s_(s) {}
-  SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
-    cg_.setTolerance(s_.tolerance);
-    cg_.setMaxIterations(s_.max_iterations);
-    cg_.compute(A);
-    if (!s_.warm_start || x.size() != b.size()) x = Eigen::VectorXd::Zero(b.size());
-    x = cg_.solveWithGuess(b, x);
-    SolveStats st;
-    st.iterations = static_cast<int>(cg_.iterations());
-    st.relative_residual = cg_.error();
-    st.ok = x.allFinite() && std::isfinite(st.relative_residual) && cg_.info() == Eigen::Success;
-    return st;
+  CholeskyFactor() {
+#ifdef FIBERFEM_HAVE_CHOLMOD
+    single_threaded_blas();
+#endif
   }
-  std::string name() const override { return "pcg"; }
-  void set_blocks(std::vector<int> starts) override { cg_.preconditioner().set_blocks(std::move(starts)); }
+  bool factorize(const SparseMatrix& A) {
+    Acol_ = Eigen::Map<const Eigen::SparseMatrix<double, Eigen::ColMajor, int>>(
+        A.rows(), A.cols(), A.nonZeros(), A.outerIndexPtr(), A.innerIndexPtr(), A.valuePtr());
+    if (!analysed_ || Acol_.rows() != rows_) {
+      llt_.analyzePattern(Acol_);
+      analysed_ = true;
+      rows_ = Acol_.rows();
+    }
+    llt_.factorize(Acol_);
+    ok_ = llt_.info() == Eigen::Success;
+    return ok_;
+  }
+  bool ok() const { return ok_; }
+  template <class Rhs>
+  Eigen::VectorXd solve(const Rhs& b) const { return llt_.solve(b); }
 
  private:
+#ifdef FIBERFEM_HAVE_CHOLMOD
+  // The supernodal factorisation calls BLAS between the engine's OpenMP loops. A
+  // multithreaded OpenBLAS keeps its threads spinning after the call and slows those loops
+  // down (measured: the rotation phase 3x slower on two cores), so BLAS runs on one thread.
+  static void single_threaded_blas() {
+    using SetThreads = void (*)(int);
+    if (auto f = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) f(1);
+  }
+#endif
+  Eigen::SparseMatrix<double, Eigen::ColMajor, int> Acol_;
+#ifdef FIBERFEM_HAVE_CHOLMOD
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>, Eigen::Lower> llt_;
+#else
+  Eigen::SimplicialLLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>, Eigen::Lower> llt_;
+#endif
+  bool analysed_ = false;
+  bool ok_ = false;
+  Eigen::Index rows_ = -1;
+};
+
+/// What the warp preconditioner shares with its solver: the factor of an earlier matrix,
+/// the node-block rotations at factorisation time, and the current ones.
+struct WarpState {
+  CholeskyFactor factor;
+  std::vector<int> starts;        // node blocks
+  std::vector<Mat3> at_factor;    // block rotations when factorised
+  std::vector<Mat3> current;      // block rotations now
+  std::vector<Mat3> warp;         // current * at_factor^T, per block
+  mutable Eigen::VectorXd work;
+  void update_warp() {
+    const size_t nb = current.size();
+    warp.resize(nb);
+    for (size_t k = 0; k < nb; ++k)
+      warp[k] = k < at_factor.size() ? Mat3(current[k] * at_factor[k].transpose()) : Mat3::Identity();
+  }
+};
+
+/// Eigen preconditioner concept around WarpState: x = W A_0^-1 W^T b, with W the per-node
+/// rotation change (blocks with fixed components are not warped).
+class WarpCholeskyPreconditioner {
+ public:
+  using StorageIndex = int;
+  enum { ColsAtCompileTime = Eigen::Dynamic, MaxColsAtCompileTime = Eigen::Dynamic };
+  WarpCholeskyPreconditioner() = default;
+  void set_state(WarpState* s) { s_ = s; }
+  template <class MatType>
+  WarpCholeskyPreconditioner& analyzePattern(const MatType&) { return *this; }
+  template <class MatType>
+  WarpCholeskyPreconditioner& factorize(const MatType& m) { return compute(m); }
+  template <class MatType>
+  WarpCholeskyPreconditioner& compute(const MatType& m) {
+    n_ = m.rows();
+    return *this;
+  }
+  template <class Rhs, class Dest>
+  void _solve_impl(const Rhs& b, Dest& x) const {
+    const bool warp = !s_->warp.empty() && s_->starts.size() == s_->warp.size() + 1;
+    if (!warp) {
+      x = s_->factor.solve(b);
+      return;
+    }
+    Eigen::VectorXd& y = s_->work;
+    y = b;
+    const int nb = static_cast<int>(s_->warp.size());
+    for (int k = 0; k < nb; ++k) {
+      const int r0 = s_->starts[static_cast<size_t>(k)];
+      if (s_->starts[static_cast<size_t>(k) + 1] - r0 == 3)
+        y.segment<3>(r0) = s_->warp[static_cast<size_t>(k)].transpose() * b.template segment<3>(r0);
+    }
+    x = s_->factor.solve(y);
+    for (int k = 0; k < nb; ++k) {
+      const int r0 = s_->starts[static_cast<size_t>(k)];
+      if (s_->starts[static_cast<size_t>(k) + 1] - r0 == 3) {
+        const Vec3 z = x.template segment<3>(r0);
+        x.template segment<3>(r0) = s_->warp[static_cast<size_t>(k)] * z;
+      }
+    }
+  }
+  template <class Rhs>
+  inline const Eigen::Solve<WarpCholeskyPreconditioner, Rhs> solve(const Eigen::MatrixBase<Rhs>& b) const {
+    return Eigen::Solve<WarpCholeskyPreconditioner, Rhs>(*this, b.derived());
+  }
+  Eigen::ComputationInfo info() { return Eigen::Success; }
+  Eigen::Index rows() const { return n_; }
+  Eigen::Index cols() const { return n_; }
+
+ private:
+  WarpState* s_ = nullptr;
+  Eigen::Index n_ = 0;
+};
+
+class PcgSolver final : public LinearSolver {
+ public:
+  explicit PcgSolver(const SolverSettings& s) : s_(s) { warp_cg_.preconditioner().set_state(&warp_); }
+  SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
+    if (!s_.warm_start || x.size() != b.size()) x = Eigen::VectorXd::Zero(b.size());
+    if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_cg_, A, b, x);
+    SolveStats st;
+    if (stale_ || !warp_.factor.ok() || factor_rows_ != A.rows()) refactor(A, st);
+    if (!warp_.factor.ok()) return failed(st);
+    warp_.update_warp();
+    const Eigen::VectorXd x0 = x;
+    SolveStats cg = run(warp_cg_, A, b, x);
+    if (!cg.ok && st.factorizations == 0) {
+      // The old factor was too far from this matrix: refresh it and solve again.
+      refactor(A, st);
+      if (!warp_.factor.ok()) return failed(st);
+      warp_.update_warp();
+      const int first = cg.iterations;
+      x = x0;
+      cg = run(warp_cg_, A, b, x);
+      cg.iterations += first;
+    }
+    cg.factorizations = st.factorizations;
+    stale_ = cg.iterations > s_.refresh_iterations;
+    return cg;
+  }
+  std::string name() const override {
+    return s_.preconditioner == PreconditionerKind::block_jacobi ? "pcg/block_jacobi" : "pcg/cholesky";
+  }
+  void set_blocks(std::vector<int> starts) override {
+    warp_.starts = starts;
+    jacobi_cg_.preconditioner().set_blocks(std::move(starts));
+  }
+  bool uses_block_rotations() const override { return s_.preconditioner == PreconditionerKind::cholesky; }
+  void set_block_rotations(const std::vector<Mat3>& rotations) override { warp_.current = rotations; }
+  void invalidate() override { stale_ = true; }
+
+ private:
+  template <class Cg>
+  SolveStats run(Cg& cg, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+    cg.setTolerance(s_.tolerance);
+    cg.setMaxIterations(s_.max_iterations);
+    cg.compute(A);
+    x = cg.solveWithGuess(b, x);
+    SolveStats st;
+    st.iterations = static_cast<int>(cg.iterations());
+    st.relative_residual = cg.error();
+    st.ok = x.allFinite() && std::isfinite(st.relative_residual) && cg.info() == Eigen::Success;
+    return st;
+  }
+  void refactor(const SparseMatrix& A, SolveStats& st) {
+    warp_.factor.factorize(A);
+    warp_.at_factor = warp_.current;
+    factor_rows_ = A.rows();
+    stale_ = false;
+    ++st.factorizations;
+  }
+  static SolveStats failed(SolveStats st) {
+    st.ok = false;
+    st.relative_residual = std::numeric_limits<double>::infinity();
+    return st;
+  }
+
   SolverSettings s_;
-  Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper, BlockJacobiPreconditioner> cg_;
+  Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper, BlockJacobiPreconditioner> jacobi_cg_;
+  WarpState warp_;
+  Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper, WarpCholeskyPreconditioner> warp_cg_;
+  bool stale_ = true;
+  Eigen::Index factor_rows_ = -1;
 };
 
 class DirectSolver final : public LinearSolver {
  public:
   SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
-    // A is stored row-major with both triangles; being symmetric, the same arrays read as
-    // column-major give the same matrix, so the copy below is a plain copy, not a transpose.
-    Acol_ = Eigen::Map<const Eigen::SparseMatrix<double, Eigen::ColMajor, int>>(
-        A.rows(), A.cols(), A.nonZeros(), A.outerIndexPtr(), A.innerIndexPtr(), A.valuePtr());
-    if (!analysed_) {
-      llt_.analyzePattern(Acol_);
-      analysed_ = true;
-    }
-    llt_.factorize(Acol_);
     SolveStats st;
     st.iterations = 1;
-    if (llt_.info() != Eigen::Success) {
+    st.factorizations = 1;
+    if (!factor_.factorize(A)) {
       st.ok = false;
       st.relative_residual = std::numeric_limits<double>::infinity();
       return st;
     }
-    x = llt_.solve(b);
+    x = factor_.solve(b);
     st.relative_residual = relative_residual(A, b, x);
     st.ok = x.allFinite() && std::isfinite(st.relative_residual);
     return st;
   }
-  std::string name() const override { return direct_solver_uses_cholmod() ? "cholmod" : "ldlt"; }
+  std::string name() const override { return direct_solver_uses_cholmod() ? "cholmod" : "llt"; }
 
  private:
-  Eigen::SparseMatrix<double, Eigen::ColMajor, int> Acol_;
-#ifdef FIBERFEM_HAVE_CHOLMOD
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>, Eigen::Lower> llt_;
-#else
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>, Eigen::Lower> llt_;
-#endif
-  bool analysed_ = false;
+  CholeskyFactor factor_;
 };
 
 }  // namespace

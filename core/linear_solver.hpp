@@ -11,12 +11,29 @@ namespace fiberfem::core {
 
 enum class LinearSolverKind {
   pcg,     ///< Preconditioned conjugate gradient (block-Jacobi 3x3 preconditioner).
-  direct,  ///< Sparse Cholesky (CHOLMOD supernodal when built with it, else Eigen LDLT).
+  direct,  ///< Sparse Cholesky every step (CHOLMOD supernodal when built with it, else Eigen LLT).
 };
+
+/// Preconditioner of the PCG solver.
+enum class PreconditionerKind {
+  /// Inverse of each node's 3x3 diagonal block. Cheap to build, weak: iterations grow with
+  /// the stiffness-to-mass ratio h^2 K / M and with the mesh resolution.
+  block_jacobi,
+  /// A sparse Cholesky factor of an earlier step's matrix, warped by the change of each
+  /// node's rotation since then (W A_0^-1 W^T; SOFA's warp preconditioner, Courtecuisse et
+  /// al. 2010). Refactorised only when a solve needs more than `refresh_iterations`; between
+  /// refreshes a step costs a few triangular solves. Memory: the factor.
+  cholesky,
+};
+const char* to_string(PreconditionerKind k);
 
 /// Settings of the linear solve. Defaults are the engine's `balanced` choice.
 struct SolverSettings {
   LinearSolverKind method = LinearSolverKind::pcg;  ///< pcg | direct. Default pcg.
+  PreconditionerKind preconditioner = PreconditionerKind::cholesky;  ///< Default cholesky.
+  /// With the cholesky preconditioner: a solve that needs more iterations than this makes
+  /// the next solve refactorise, >= 1. Default 8.
+  int refresh_iterations = 8;
   double tolerance = 1e-6;    ///< PCG relative residual |r|/|b|, in (0, 1). Default 1e-6.
   int max_iterations = 500;   ///< PCG iteration cap, >= 1. Default 500.
   bool warm_start = true;     ///< PCG starts from the last velocity. Default true.
@@ -30,6 +47,7 @@ struct SolverSettings {
 /// Result of one solve.
 struct SolveStats {
   int iterations = 0;          ///< PCG iterations (1 for the direct solver).
+  int factorizations = 0;      ///< Cholesky factorisations done by this solve (0 or more).
   double relative_residual = 0;  ///< |A x - b| / |b|.
   bool ok = false;             ///< Finite result and (for PCG) converged to tolerance.
 };
@@ -44,6 +62,13 @@ class LinearSolver {
   /// Node blocks of the free DOFs for block preconditioners: rows starts[k] .. starts[k+1]-1
   /// belong to one node. Ignored by solvers that need none.
   virtual void set_blocks(std::vector<int> /*starts*/) {}
+  /// Whether `solve` wants the current rotation of each node block (warp preconditioner).
+  virtual bool uses_block_rotations() const { return false; }
+  /// Current rotation of each node block (same order as the blocks); called before `solve`.
+  virtual void set_block_rotations(const std::vector<Mat3>& /*rotations*/) {}
+  /// The matrix changed by more than a step's motion (time step, material, damping):
+  /// solvers that reuse a factorisation refresh it at the next solve.
+  virtual void invalidate() {}
 };
 
 /// Makes the solver for `settings` (validated).

@@ -13,8 +13,9 @@ namespace fiberfem::core {
 enum class RotationMethod {
   /// 3x3 SVD with the sign fix of Irving, Teran and Fedkiw (2004). Exact, the reference.
   svd,
-  /// Iterative quaternion polar extraction of Mueller et al. (2016), warm-started from the
-  /// element's previous rotation. Cheaper when the rotation changes little per step.
+  /// Quaternion ascent on trace(R^T F) with Newton steps (falling back to the steps of
+  /// Mueller et al. 2016 far from the answer), warm-started from the element's previous
+  /// rotation: two or three iterations per step, cheaper than the SVD.
   polar,
 };
 

@@ -64,6 +64,23 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   f_ext_ = model_.external_forces();
   solver_ = make_linear_solver(settings_.solver);
   solver_->set_blocks(sys_.node_block_starts());
+  const int nn = model_.mesh.num_nodes();
+  for (int n = 0; n < nn; ++n)
+    for (int c = 0; c < 3; ++c)
+      if (sys_.free_index()[static_cast<size_t>(3 * n + c)] >= 0) {
+        block_node_.push_back(n);
+        break;
+      }
+  node_elem_start_.assign(static_cast<size_t>(nn) + 1, 0);
+  for (const Tet& t : model_.mesh.tets())
+    for (int n : t) ++node_elem_start_[static_cast<size_t>(n) + 1];
+  for (int n = 0; n < nn; ++n) node_elem_start_[static_cast<size_t>(n) + 1] += node_elem_start_[static_cast<size_t>(n)];
+  node_elems_.resize(static_cast<size_t>(node_elem_start_.back()));
+  {
+    std::vector<int> fill(node_elem_start_.begin(), node_elem_start_.end() - 1);
+    for (int e = 0; e < ne; ++e)
+      for (int n : model_.mesh.tets()[static_cast<size_t>(e)]) node_elems_[static_cast<size_t>(fill[static_cast<size_t>(n)]++)] = e;
+  }
   R_.assign(static_cast<size_t>(ne), Mat3::Identity());
   q_.assign(static_cast<size_t>(ne), Eigen::Quaterniond::Identity());
   reset();
@@ -87,6 +104,9 @@ void Simulator::reset() {
   v_ = Eigen::VectorXd::Zero(3 * n);
   std::fill(R_.begin(), R_.end(), Mat3::Identity());
   std::fill(q_.begin(), q_.end(), Eigen::Quaterniond::Identity());
+  block_q_.assign(block_node_.size(), Eigen::Quaterniond::Identity());
+  block_R_.assign(block_node_.size(), Mat3::Identity());
+  solver_->invalidate();
   vfree_ = Eigen::VectorXd::Zero(sys_.num_free());
   time_s_ = 0;
   steps_ = 0;
@@ -161,9 +181,14 @@ bool Simulator::advance(double h, StepReport& r, std::string& why) {
         const Mat3& R = R_[i];
         const Mat12& K = caches_.K[i];
         const Tet& t = model_.mesh.tets()[i];
+        // u relative to node 0 (a rigid translation K^e does not see) keeps round-off small
+        // far from the origin, as corotated_displacement does.
         Vec12 u;
+        const Vec3 x0 = x_.segment<3>(3 * t[0]);
+        const Vec3 X0 = caches_.X[i].segment<3>(0);
         for (int a = 0; a < 4; ++a)
-          u.segment<3>(3 * a) = R.transpose() * x_.segment<3>(3 * t[static_cast<size_t>(a)]) - caches_.X[i].segment<3>(3 * a);
+          u.segment<3>(3 * a) = R.transpose() * (x_.segment<3>(3 * t[static_cast<size_t>(a)]) - x0) -
+                                (caches_.X[i].segment<3>(3 * a) - X0);
         const Vec12 Ku = K * u;
         acc[static_cast<size_t>(omp_get_thread_num())].energy += 0.5 * u.dot(Ku);
         Vec12 floc = -Ku;
@@ -202,7 +227,12 @@ bool Simulator::advance(double h, StepReport& r, std::string& why) {
   // Phase 3: solve for the new velocity.
   t0 = Clock::now();
   if (!settings_.solver.warm_start || vfree_.size() != sys_.num_free()) vfree_ = sys_.restrict_to_free(v_);
+  if (solver_->uses_block_rotations()) {
+    update_block_rotations();
+    solver_->set_block_rotations(block_R_);
+  }
   const SolveStats st = solver_->solve(sys_.matrix(), rhs_, vfree_);
+  r.solver_factorizations += st.factorizations;
   r.time.solve_s += seconds_since(t0);
   r.solver_iterations += st.iterations;
   r.solver_residual = std::max(r.solver_residual, st.relative_residual);
@@ -228,6 +258,26 @@ bool Simulator::advance(double h, StepReport& r, std::string& why) {
   return true;
 }
 
+// Rotation of each node block: the rotation nearest the sum of the rotations of the
+// elements around the node (warm-started polar extraction). Only the warp preconditioner
+// uses it.
+void Simulator::update_block_rotations() {
+  const int nb = static_cast<int>(block_node_.size());
+  if (!settings_.corotation) {
+    std::fill(block_R_.begin(), block_R_.end(), Mat3::Identity());
+    return;
+  }
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < nb; ++k) {
+    const int n = block_node_[static_cast<size_t>(k)];
+    Mat3 sum = Mat3::Zero();
+    for (int j = node_elem_start_[static_cast<size_t>(n)]; j < node_elem_start_[static_cast<size_t>(n) + 1]; ++j)
+      sum += R_[static_cast<size_t>(node_elems_[static_cast<size_t>(j)])];
+    rotation_polar(sum, block_q_[static_cast<size_t>(k)], 20, 1e-6);
+    block_R_[static_cast<size_t>(k)] = block_q_[static_cast<size_t>(k)].toRotationMatrix();
+  }
+}
+
 StepReport Simulator::step() {
   const auto t0 = Clock::now();
   StepReport r;
@@ -247,6 +297,7 @@ StepReport Simulator::step() {
       ok = advance(h, sub, why);
       attempt.time = sub.time;
       attempt.solver_iterations += sub.solver_iterations;
+      r.solver_factorizations += sub.solver_factorizations;
       attempt.solver_residual = std::max(attempt.solver_residual, sub.solver_residual);
       attempt.inverted_elements = sub.inverted_elements;
       if (s == 0) {
@@ -258,9 +309,11 @@ StepReport Simulator::step() {
     if (ok) {
       const PhaseTimes times = r.time;
       const std::string msg = r.message;
+      const int factorizations = r.solver_factorizations;
       r = attempt;
       r.time = times;
       r.message = msg;
+      r.solver_factorizations = factorizations;
       r.substeps = nsub;
       r.attempts = level + 1;
       r.status = level == 0 ? StepStatus::ok : StepStatus::recovered;
@@ -323,6 +376,7 @@ void Simulator::set_region_material(int region, const Material& material) {
     if (model_.mesh.regions()[static_cast<size_t>(e)] == region) elems.push_back(e);
   caches_.rebuild(model_, elems);
   update_node_masses();
+  solver_->invalidate();
   f_ext_ = model_.external_forces();
 }
 
@@ -335,6 +389,7 @@ void Simulator::set_region_damping(int region, const RayleighDamping& damping) {
   for (int e = 0; e < model_.mesh.num_elements(); ++e)
     if (model_.mesh.regions()[static_cast<size_t>(e)] == region) beta_e_[static_cast<size_t>(e)] = damping.stiffness_s;
   update_node_masses();
+  solver_->invalidate();
 }
 
 void Simulator::set_fibers(std::vector<Vec3> fibers) {
@@ -357,12 +412,14 @@ void Simulator::set_fibers(std::vector<Vec3> fibers) {
     if (!iso || !caches_.g.empty()) changed.push_back(e);
   }
   caches_.rebuild(model_, changed);
+  if (!changed.empty()) solver_->invalidate();
 }
 
 void Simulator::set_time_step(double dt_s) {
   SimulatorSettings s = settings_;
   s.dt_s = dt_s;
   s.validate();
+  if (s.dt_s != settings_.dt_s) solver_->invalidate();
   settings_ = s;
 }
 
@@ -393,7 +450,10 @@ void Simulator::set_rotation_method(RotationMethod m) {
   settings_.rotation = m;
 }
 
-void Simulator::set_corotation(bool on) { settings_.corotation = on; }
+void Simulator::set_corotation(bool on) {
+  if (on != settings_.corotation) solver_->invalidate();
+  settings_.corotation = on;
+}
 
 void Simulator::set_active_tension(std::vector<double> tension_pa) {
   if (tension_pa.empty()) {

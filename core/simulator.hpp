@@ -56,6 +56,7 @@ struct StepReport {
   int substeps = 1;               ///< Substeps of the accepted attempt.
   int attempts = 1;               ///< Attempts made (1 + retries).
   int solver_iterations = 0;      ///< Summed over the accepted attempt's substeps.
+  int solver_factorizations = 0;  ///< Cholesky factorisations, summed over all attempts.
   double solver_residual = 0;     ///< Largest relative residual of the accepted attempt.
   double kinetic_energy_j = 0;
   double elastic_energy_j = 0;
@@ -125,6 +126,7 @@ class Simulator {
   bool advance(double h, StepReport& r, std::string& why);
   void update_node_masses();
   void apply_fixed();
+  void update_block_rotations();
 
   Model model_;
   SimulatorSettings settings_;
@@ -139,6 +141,12 @@ class Simulator {
   Eigen::VectorXd x_, v_;           // 3N
   std::vector<Mat3> R_;
   std::vector<Eigen::Quaterniond> q_;
+  // Node blocks of the free DOFs (for the warp preconditioner): node of each block, the
+  // elements around each node (CSR), and each block's rotation.
+  std::vector<int> block_node_;
+  std::vector<int> node_elem_start_, node_elems_;
+  std::vector<Eigen::Quaterniond> block_q_;
+  std::vector<Mat3> block_R_;
   double time_s_ = 0;
   long steps_ = 0;
   // work

@@ -11,7 +11,7 @@ cd "$here"
 
 packages=(
   build-essential cmake ninja-build pkg-config git
-  libeigen3-dev libsuitesparse-dev
+  libeigen3-dev libsuitesparse-dev libopenblas0-pthread
   libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev libpng-dev
   cyclonedds-dev cyclonedds-tools libhdf5-dev hdf5-tools
