@@ -24,6 +24,8 @@ const char* to_string(PreconditionerKind k) {
   return "?";
 }
 
+const char* to_string(LinearSolverKind k) { return k == LinearSolverKind::pcg ? "pcg" : "direct"; }
+
 void SolverSettings::validate() const {
   if (refresh_iterations < 1)
     throw std::invalid_argument("solver: refresh_iterations must be >= 1, got " + std::to_string(refresh_iterations));
@@ -275,9 +277,13 @@ class PcgSolver final : public LinearSolver {
     cg.setTolerance(s_.tolerance);
     cg.setMaxIterations(s_.max_iterations);
     cg.compute(A);
+    const Eigen::VectorXd guess = x;
     x = cg.solveWithGuess(b, x);
     SolveStats st;
+    // Eigen counts the iterations before the converged one; count matrix-vector products
+    // (0 only when the guess already met the tolerance and x is untouched).
     st.iterations = static_cast<int>(cg.iterations());
+    if (cg.info() == Eigen::Success && (st.iterations > 0 || x != guess)) ++st.iterations;
     st.relative_residual = cg.error();
     st.ok = x.allFinite() && std::isfinite(st.relative_residual) && cg.info() == Eigen::Success;
     return st;

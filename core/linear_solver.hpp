@@ -26,6 +26,8 @@ enum class PreconditionerKind {
   cholesky,
 };
 const char* to_string(PreconditionerKind k);
+/// "pcg" or "direct".
+const char* to_string(LinearSolverKind k);
 
 /// Settings of the linear solve. Defaults are the engine's `balanced` choice.
 struct SolverSettings {

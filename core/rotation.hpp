@@ -19,6 +19,9 @@ enum class RotationMethod {
   polar,
 };
 
+/// "svd" or "polar".
+const char* to_string(RotationMethod m);
+
 /// Proper rotation of F by modified SVD: F = U S V^T with the sign of the smallest singular
 /// value flipped when U or V is a reflection, R = U V^T.
 Mat3 rotation_svd(const Mat3& F);

@@ -108,6 +108,7 @@ void Simulator::reset() {
   block_R_.assign(block_node_.size(), Mat3::Identity());
   solver_->invalidate();
   vfree_ = Eigen::VectorXd::Zero(sys_.num_free());
+  vfree_prev_ = vfree_;
   time_s_ = 0;
   steps_ = 0;
 }
@@ -131,6 +132,17 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
   v_ = Eigen::Map<const Eigen::VectorXd>(v.data(), 3 * n);
   apply_fixed();
   vfree_ = sys_.restrict_to_free(v_);
+  vfree_prev_ = vfree_;
+  // Re-seed the warm-started rotations from the new shape (exact, by SVD).
+  const int ne = model_.mesh.num_elements();
+#pragma omp parallel for schedule(static)
+  for (int e = 0; e < ne; ++e) {
+    const size_t i = static_cast<size_t>(e);
+    const Mat3 F = deformation_gradient(gather(positions(), model_.mesh.tets()[i]), caches_.Dm_inv[i]);
+    R_[i] = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
+    q_[i] = Eigen::Quaterniond(R_[i]);
+  }
+  solver_->invalidate();
 }
 
 // Linearised backward Euler in velocity form (PHYSICS.md section 5), per element e:
@@ -226,7 +238,18 @@ bool Simulator::advance(double h, StepReport& r, std::string& why) {
 
   // Phase 3: solve for the new velocity.
   t0 = Clock::now();
-  if (!settings_.solver.warm_start || vfree_.size() != sys_.num_free()) vfree_ = sys_.restrict_to_free(v_);
+  // Initial guess: the last velocity extrapolated linearly (v_n + (v_n - v_{n-1})), which
+  // follows smooth motion to second order; PCG ignores it when warm_start is off.
+  if (!settings_.solver.warm_start || vfree_.size() != sys_.num_free()) {
+    vfree_ = sys_.restrict_to_free(v_);
+  } else if (h == last_h_) {
+    guess_ = 2.0 * vfree_ - vfree_prev_;
+    vfree_prev_ = vfree_;
+    vfree_.swap(guess_);
+  } else {
+    vfree_prev_ = vfree_;
+  }
+  last_h_ = h;
   if (solver_->uses_block_rotations()) {
     update_block_rotations();
     solver_->set_block_rotations(block_R_);
@@ -281,7 +304,8 @@ void Simulator::update_block_rotations() {
 StepReport Simulator::step() {
   const auto t0 = Clock::now();
   StepReport r;
-  const Eigen::VectorXd x0 = x_, v0 = v_, vfree0 = vfree_;
+  const Eigen::VectorXd x0 = x_, v0 = v_, vfree0 = vfree_, vprev0 = vfree_prev_;
+  const double last_h0 = last_h_;
   const std::vector<Eigen::Quaterniond> q0 = settings_.rotation == RotationMethod::polar ? q_ : std::vector<Eigen::Quaterniond>{};
   const double t_start = time_s_;
   std::string why;
@@ -324,6 +348,8 @@ StepReport Simulator::step() {
     x_ = x0;
     v_ = v0;
     vfree_ = vfree0;
+    vfree_prev_ = vprev0;
+    last_h_ = last_h0;
     if (!q0.empty()) q_ = q0;
     time_s_ = t_start;
     r.attempts = level + 1;

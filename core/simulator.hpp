@@ -151,6 +151,8 @@ class Simulator {
   long steps_ = 0;
   // work
   Eigen::VectorXd f_, rhs_, vfree_;
+  Eigen::VectorXd vfree_prev_, guess_;  // last two solutions (warm start extrapolation)
+  double last_h_ = -1;
 };
 
 }  // namespace fiberfem::core

@@ -45,11 +45,13 @@ struct Case {
   bool fiber = true;
   core::LinearSolverKind solver = core::LinearSolverKind::pcg;
   core::RotationMethod rotation = core::RotationMethod::polar;
+  core::PreconditionerKind preconditioner = core::PreconditionerKind::cholesky;
 };
 
 struct Result {
   int tets = 0, nodes = 0;
-  double median_step_s = 0, mean_step_s = 0;
+  double median_step_s = 0, mean_step_s = 0, max_step_s = 0;
+  double factorizations = 0;                             // per step
   double rotations_s = 0, assembly_s = 0, solve_s = 0;  // medians
   double iterations = 0;                                 // mean per step
   double peak_rss_mb = 0;
@@ -91,6 +93,8 @@ core::Model make_beam(const Size& size, bool fiber) {
   return m;
 }
 
+int g_refresh = 8;
+
 Result run_case(const Size& size, const Case& c, double tol) {
   reset_peak_rss();
   core::Model model = make_beam(size, c.fiber);
@@ -100,6 +104,8 @@ Result run_case(const Size& size, const Case& c, double tol) {
   st.solver.tolerance = tol;
   st.solver.max_iterations = 2000;
   st.rotation = c.rotation;
+  st.solver.preconditioner = c.preconditioner;
+  st.solver.refresh_iterations = g_refresh;
   Result r;
   r.tets = model.mesh.num_elements();
   r.nodes = model.mesh.num_nodes();
@@ -114,6 +120,7 @@ Result run_case(const Size& size, const Case& c, double tol) {
     asm_.push_back(rep.time.assembly_s);
     sol.push_back(rep.time.solve_s);
     its += rep.solver_iterations;
+    r.factorizations += rep.solver_factorizations;
     if (rep.status == core::StepStatus::failed) ++r.failed;
   }
   r.median_step_s = median(total);
@@ -122,15 +129,17 @@ Result run_case(const Size& size, const Case& c, double tol) {
   r.assembly_s = median(asm_);
   r.solve_s = median(sol);
   r.iterations = its / size.steps;
+  r.factorizations /= size.steps;
+  r.max_step_s = *std::max_element(total.begin(), total.end());
   r.peak_rss_mb = peak_rss_mb();
   return r;
 }
 
 std::string solver_name(const Case& c, double tol) {
   if (c.solver == core::LinearSolverKind::direct)
-    return core::direct_solver_uses_cholmod() ? "direct (CHOLMOD)" : "direct (LDLT)";
+    return core::direct_solver_uses_cholmod() ? "direct (CHOLMOD)" : "direct (LLT)";
   std::ostringstream s;
-  s << "PCG " << tol;
+  s << "PCG " << tol << " " << core::to_string(c.preconditioner);
   return s.str();
 }
 
@@ -142,14 +151,19 @@ int main(int argc, char** argv) {
   std::string out;
   double tol = 1e-6;
   int threads = 0;
+  int refresh = core::SolverSettings{}.refresh_iterations;
   std::vector<std::string> only;
   app.add_flag("--quick", quick, "Small beam only, few steps (a smoke run)");
   app.add_option("--out", out, "Also write the Markdown report to this file");
   app.add_option("--tolerance", tol, "PCG relative tolerance")->capture_default_str();
+  app.add_option("--refresh-iterations", refresh, "Cholesky preconditioner refresh threshold")->capture_default_str();
   app.add_option("--threads", threads, "OpenMP threads (0 = all cores)")->capture_default_str();
   app.add_option("--sizes", only, "Subset of sizes: small medium large");
+  int only_case = -1;
+  app.add_option("--case", only_case, "Run only this row of each size (0-based; for profiling)");
   CLI11_PARSE(app, argc, argv);
   if (threads > 0) omp_set_num_threads(threads);
+  g_refresh = refresh;
 
   std::vector<Size> sizes = {{"small", {48, 5, 4}, 10, 120},
                              {"medium", {96, 9, 10}, 3, 20},
@@ -164,6 +178,7 @@ int main(int argc, char** argv) {
       {true, core::LinearSolverKind::pcg, core::RotationMethod::polar},
       {false, core::LinearSolverKind::pcg, core::RotationMethod::polar},
       {true, core::LinearSolverKind::pcg, core::RotationMethod::svd},
+      {true, core::LinearSolverKind::pcg, core::RotationMethod::polar, core::PreconditionerKind::block_jacobi},
       {true, core::LinearSolverKind::direct, core::RotationMethod::polar},
       {false, core::LinearSolverKind::direct, core::RotationMethod::polar},
   };
@@ -174,15 +189,19 @@ int main(int argc, char** argv) {
   const std::time_t now = std::time(nullptr);
   char date[32];
   std::strftime(date, sizeof date, "%Y-%m-%d", std::gmtime(&now));
-  md << "| beam | tets | model | solver | rotation | steps/s (median) | ms/step (median) | rotations ms | "
-        "assembly ms | solve ms | iterations/step | peak RSS MB |\n"
-     << "|---|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
+  md << "| beam | tets | model | solver | rotation | steps/s (mean) | ms/step median | ms/step max | "
+        "rotations ms | assembly ms | solve ms | iterations/step | factorisations/step | peak RSS MB |\n"
+     << "|---|---:|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   std::ostringstream ratios;
   ratios << "| beam | solver | fiber/isotropic step time | fiber/isotropic rotations+assembly | "
             "fiber/isotropic solve time per iteration |\n|---|---|---:|---:|---:|\n";
   for (const Size& size : sizes) {
     std::vector<Result> res;
     for (const Case& c : cases) {
+      if (only_case >= 0 && &c != &cases[static_cast<size_t>(only_case)]) {
+        res.push_back({});
+        continue;
+      }
       const Result r = run_case(size, c, tol);
       res.push_back(r);
       std::ostringstream row;
@@ -191,16 +210,21 @@ int main(int argc, char** argv) {
       row << "| " << size.name << " | " << r.tets << " | " << (c.fiber ? "fiber" : "isotropic") << " | "
           << solver_name(c, tol) << " | " << (c.rotation == core::RotationMethod::svd ? "svd" : "polar") << " | ";
       row.precision(1);
-      row << 1.0 / r.median_step_s << " | ";
+      row << 1.0 / r.mean_step_s << " | ";
       row.precision(2);
-      row << 1e3 * r.median_step_s << " | " << 1e3 * r.rotations_s << " | " << 1e3 * r.assembly_s << " | "
+      row << 1e3 * r.median_step_s << " | " << 1e3 * r.max_step_s << " | " << 1e3 * r.rotations_s << " | " << 1e3 * r.assembly_s << " | "
           << 1e3 * r.solve_s << " | ";
       row.precision(1);
-      row << r.iterations << " | " << r.peak_rss_mb << " |" << (r.failed ? " (failed steps!)" : "") << "\n";
+      row << r.iterations << " | ";
+      row.precision(3);
+      row << r.factorizations << " | ";
+      row.precision(1);
+      row << r.peak_rss_mb << " |" << (r.failed ? " (failed steps!)" : "") << "\n";
       md << row.str();
       std::cout << row.str() << std::flush;
     }
-    for (int k : {0, 3}) {
+    for (int k : {0, 4}) {
+      if (only_case >= 0) break;
       const Result& f = res[static_cast<size_t>(k)];
       const Result& i = res[static_cast<size_t>(k) + 1];
       std::ostringstream row;
