@@ -237,8 +237,27 @@ class WarpCholeskyPreconditioner {
 class PcgSolver final : public LinearSolver {
  public:
   explicit PcgSolver(const SolverSettings& s) : s_(s) { warp_cg_.preconditioner().set_state(&warp_); }
-  SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override {
-    if (!s_.warm_start || x.size() != b.size()) x = Eigen::VectorXd::Zero(b.size());
+  SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b_in, Eigen::VectorXd& x) override {
+    if (!s_.warm_start || x.size() != b_in.size()) x = Eigen::VectorXd::Zero(b_in.size());
+    // Solve for x / |b| with a unit right-hand side: CG's squared norms would underflow
+    // below DBL_MIN for a body decaying to rest (|b| ~ 1e-154) and stop it early.
+    const double bn = b_in.norm();
+    if (bn == 0.0) {
+      x.setZero();
+      SolveStats st;
+      st.ok = true;
+      return st;
+    }
+    if (!std::isfinite(bn)) return failed({});
+    const Eigen::VectorXd b = b_in / bn;
+    x /= bn;
+    SolveStats st = solve_scaled(A, b, x);
+    x *= bn;
+    return st;
+  }
+
+ private:
+  SolveStats solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
     if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_cg_, A, b, x);
     SolveStats st;
     if (stale_ || !warp_.factor.ok() || factor_rows_ != A.rows()) refactor(A, st);
@@ -260,6 +279,8 @@ class PcgSolver final : public LinearSolver {
     stale_ = cg.iterations > s_.refresh_iterations;
     return cg;
   }
+
+ public:
   std::string name() const override {
     return s_.preconditioner == PreconditionerKind::block_jacobi ? "pcg/block_jacobi" : "pcg/cholesky";
   }

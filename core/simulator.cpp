@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 namespace fiberfem::core {
@@ -45,6 +47,12 @@ void SimulatorSettings::validate() const {
   if (!(max_inverted_fraction > 0 && max_inverted_fraction <= 1))
     throw std::invalid_argument("simulator: max_inverted_fraction must be in (0, 1], got " +
                                 std::to_string(max_inverted_fraction));
+  if (!(max_energy_gain >= 0))
+    throw std::invalid_argument("simulator: max_energy_gain must be >= 0 (infinity turns the check off), got " +
+                                std::to_string(max_energy_gain));
+  if (!(polar_tolerance_rad > 0 && polar_tolerance_rad <= 0.1))
+    throw std::invalid_argument("simulator: polar_tolerance_rad must be in (0, 0.1], got " +
+                                std::to_string(polar_tolerance_rad));
   if (threads < 0) throw std::invalid_argument("simulator: threads must be >= 0, got " + std::to_string(threads));
 }
 
@@ -88,6 +96,11 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
 
 void Simulator::update_node_masses() {
   mass_ = model_.lumped_node_masses();
+  energy_floor_j_ = 0;
+  for (int e = 0; e < model_.mesh.num_elements(); ++e) {
+    const Material& m = model_.region_materials[static_cast<size_t>(model_.mesh.regions()[static_cast<size_t>(e)])];
+    energy_floor_j_ += 0.5 * model_.mesh.rest_volume(e) * m.stiffness().diagonal().maxCoeff() * 1e-16;
+  }
   mass_alpha_ = Eigen::VectorXd::Zero(model_.mesh.num_nodes());
   if (model_.region_damping.empty()) return;
   for (int e = 0; e < model_.mesh.num_elements(); ++e) {
@@ -104,6 +117,7 @@ void Simulator::reset() {
   v_ = Eigen::VectorXd::Zero(3 * n);
   std::fill(R_.begin(), R_.end(), Mat3::Identity());
   std::fill(q_.begin(), q_.end(), Eigen::Quaterniond::Identity());
+  rotations_current_ = false;
   block_q_.assign(block_node_.size(), Eigen::Quaterniond::Identity());
   block_R_.assign(block_node_.size(), Mat3::Identity());
   solver_->invalidate();
@@ -142,51 +156,74 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
     R_[i] = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
     q_[i] = Eigen::Quaterniond(R_[i]);
   }
+  rotations_current_ = false;
   solver_->invalidate();
+}
+
+// Rotations (and, if asked, the elastic energy) of the current positions; counts the
+// inverted elements into inverted_current_.
+double Simulator::update_rotations(bool with_energy) {
+  const int ne = model_.mesh.num_elements();
+  const bool polar = settings_.rotation == RotationMethod::polar;
+  const bool corot = settings_.corotation;
+  int inverted = 0;
+  double energy = 0;
+#pragma omp parallel for schedule(static) reduction(+ : inverted, energy)
+  for (int e = 0; e < ne; ++e) {
+    const size_t i = static_cast<size_t>(e);
+    const Tet& t = model_.mesh.tets()[i];
+    Mat3 Ds;
+    const Vec3 x0 = x_.segment<3>(3 * t[0]);
+    for (int j = 0; j < 3; ++j) Ds.col(j) = x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0;
+    const Mat3 F = Ds * caches_.Dm_inv[i];
+    if (F.determinant() <= 0) ++inverted;
+    if (!corot) {
+      R_[i] = Mat3::Identity();
+    } else if (polar) {
+      rotation_polar(F, q_[i], 20, settings_.polar_tolerance_rad);
+      R_[i] = q_[i].toRotationMatrix();
+    } else {
+      R_[i] = rotation_svd(F);
+    }
+    if (with_energy) {
+      const Mat3& R = R_[i];
+      const Vec12& X = caches_.X[i];
+      Vec12 u;
+      u.segment<3>(0).setZero();
+      for (int a = 1; a < 4; ++a) u.segment<3>(3 * a) = R.transpose() * Ds.col(a - 1) - (X.segment<3>(3 * a) - X.segment<3>(0));
+      energy += 0.5 * u.dot(caches_.K[i] * u);
+    }
+  }
+  inverted_current_ = inverted;
+  return energy;
 }
 
 // Linearised backward Euler in velocity form (PHYSICS.md section 5), per element e:
 //   A = sum_e [(1 + h alpha_e) M_e + (h beta_e + h^2) R K^e R^T]
 //   b = M v_n + h (f_ext + f_el(x_n) + f_active),  f_el = -R K^e (R^T x - X),
 //   f_active = -T_a R g^e (section 6); then x_{n+1} = x_n + h v_{n+1}.
-bool Simulator::advance(double h, StepReport& r, std::string& why) {
+bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& why) {
   const int ne = model_.mesh.num_elements();
   const int nthreads = omp_get_max_threads();
   std::vector<ThreadAcc> acc(static_cast<size_t>(nthreads));
 
-  // Phase 1: rotations (embarrassingly parallel).
+  // Phase 1: rotations (embarrassingly parallel), unless the energy check of the last
+  // step already computed them for this state.
   auto t0 = Clock::now();
-  const bool polar = settings_.rotation == RotationMethod::polar;
-  const bool corot = settings_.corotation;
-#pragma omp parallel for schedule(static)
-  for (int e = 0; e < ne; ++e) {
-    const size_t i = static_cast<size_t>(e);
-    const Tet& t = model_.mesh.tets()[i];
-    Mat3 Ds;
-    for (int j = 0; j < 3; ++j) Ds.col(j) = x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x_.segment<3>(3 * t[0]);
-    const Mat3 F = Ds * caches_.Dm_inv[i];
-    if (F.determinant() <= 0) acc[static_cast<size_t>(omp_get_thread_num())].inverted += 1;
-    if (!corot) {
-      R_[i] = Mat3::Identity();
-      continue;
-    }
-    if (polar) {
-      rotation_polar(F, q_[i]);
-      R_[i] = q_[i].toRotationMatrix();
-    } else {
-      R_[i] = rotation_svd(F);
-    }
+  if (!rotations_current_) {
+    update_rotations(false);
   }
-  r.time.rotations_s += seconds_since(t0);
-  int inverted = 0;
-  for (auto& a : acc) inverted += a.inverted;
+  rotations_current_ = false;
+  const int inverted = inverted_current_;
   r.inverted_elements = inverted;
+  r.time.rotations_s += seconds_since(t0);
 
   // Phase 2: assembly of A and of the elastic and active forces.
   t0 = Clock::now();
   sys_.zero_matrix();
   f_.setZero(sys_.num_dofs());
   const bool active = !active_.empty();
+  if (active) f_active_.setZero(sys_.num_dofs());
   sys_.assemble(
       [&](int e, Mat12& Ke, Vec12& fe) {
         const size_t i = static_cast<size_t>(e);
@@ -204,7 +241,11 @@ bool Simulator::advance(double h, StepReport& r, std::string& why) {
         const Vec12 Ku = K * u;
         acc[static_cast<size_t>(omp_get_thread_num())].energy += 0.5 * u.dot(Ku);
         Vec12 floc = -Ku;
-        if (active) floc -= active_[i] * caches_.g[i];
+        if (active) {
+          floc -= active_[i] * caches_.g[i];
+          for (int a = 0; a < 4; ++a)
+            f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * (R * caches_.g[i].segment<3>(3 * a));
+        }
         for (int a = 0; a < 4; ++a) fe.segment<3>(3 * a) = R * floc.segment<3>(3 * a);
         const double c = h * beta_e_[i] + h * h;
         for (int a = 0; a < 4; ++a)
@@ -234,6 +275,7 @@ bool Simulator::advance(double h, StepReport& r, std::string& why) {
   double kinetic = 0;
   for (int n = 0; n < nn; ++n) kinetic += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
   r.kinetic_energy_j = kinetic;
+  // (kinetic and elastic are the energies of the state the step starts from.)
   r.time.assembly_s += seconds_since(t0);
 
   // Phase 3: solve for the new velocity.
@@ -267,15 +309,50 @@ bool Simulator::advance(double h, StepReport& r, std::string& why) {
     why = "linear solve residual " + std::to_string(st.relative_residual) + " above failure_residual";
     return false;
   }
-  if (inverted > settings_.max_inverted_fraction * ne) {
-    why = std::to_string(inverted) + " inverted elements, above max_inverted_fraction";
-    return false;
-  }
   sys_.scatter_free(vfree_, v_);
   x_ += h * v_;
   if (!x_.allFinite()) {
     why = "positions became NaN/Inf";
     return false;
+  }
+  // Checks on the state the step leaves. Its rotations are the next step's phase 1, so
+  // computing them here costs only the energy sum.
+  const bool guard = settings_.max_energy_gain < std::numeric_limits<double>::infinity();
+  if (guard || settings_.max_inverted_fraction < 1.0) {
+    t0 = Clock::now();
+    const double elastic1 = update_rotations(guard);
+    rotations_current_ = true;
+    r.time.rotations_s += seconds_since(t0);
+    r.inverted_elements = inverted_current_;
+    if (inverted_current_ > settings_.max_inverted_fraction * ne) {
+      why = std::to_string(inverted_current_) + " inverted elements after the step, above max_inverted_fraction";
+      rotations_current_ = false;
+      return false;
+    }
+    if (guard) {
+      // Backward Euler with damping dissipates: the kinetic plus elastic energy may grow
+      // only by the work of the loads and of the active stress, h (f_ext + f_active) . v.
+      double kinetic1 = 0, work = 0;
+      for (int n = 0; n < nn; ++n) {
+        kinetic1 += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
+        Vec3 f = f_ext_.segment<3>(3 * n);
+        if (active) f += f_active_.segment<3>(3 * n);
+        work += h * f.dot(v_.segment<3>(3 * n));
+      }
+      const double gain = (kinetic1 + elastic1) - (kinetic + elastic) - work;
+      // energy_floor_j_: the energy of a uniform strain of 1e-8, below which energy
+      // changes are round-off (and polar tolerance), not dynamics. At the finest substep
+      // the step is accepted whatever the gain (refinement, not failure).
+      const double allowed = settings_.max_energy_gain * (kinetic + elastic + std::abs(work));
+      if (gain > allowed + energy_floor_j_ && !last_chance) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "energy grew by %.3g J without external work (%.3g of the state's energy)",
+                      gain, gain / (kinetic + elastic + std::abs(work) + 1e-300));
+        why = buf;
+        rotations_current_ = false;
+        return false;
+      }
+    }
   }
   time_s_ += h;
   return true;
@@ -318,7 +395,7 @@ StepReport Simulator::step() {
     for (int s = 0; s < nsub && ok; ++s) {
       StepReport sub;
       sub.time = attempt.time;
-      ok = advance(h, sub, why);
+      ok = advance(h, level == settings_.max_substep_halvings, sub, why);
       attempt.time = sub.time;
       attempt.solver_iterations += sub.solver_iterations;
       r.solver_factorizations += sub.solver_factorizations;
@@ -349,6 +426,7 @@ StepReport Simulator::step() {
     v_ = v0;
     vfree_ = vfree0;
     vfree_prev_ = vprev0;
+    rotations_current_ = false;
     last_h_ = last_h0;
     if (!q0.empty()) q_ = q0;
     time_s_ = t_start;
@@ -474,9 +552,11 @@ void Simulator::set_rotation_method(RotationMethod m) {
   if (m == RotationMethod::polar && settings_.rotation != RotationMethod::polar)
     for (size_t i = 0; i < R_.size(); ++i) q_[i] = Eigen::Quaterniond(R_[i]);
   settings_.rotation = m;
+  rotations_current_ = false;
 }
 
 void Simulator::set_corotation(bool on) {
+  rotations_current_ = false;
   if (on != settings_.corotation) solver_->invalidate();
   settings_.corotation = on;
 }

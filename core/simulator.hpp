@@ -28,6 +28,15 @@ struct SimulatorSettings {
   /// A step that leaves more than this fraction of elements inverted counts as failed,
   /// in (0, 1]. Default 1 (inversion alone never fails a step; it is always counted).
   double max_inverted_fraction = 1.0;
+  /// Energy check: a step whose kinetic plus elastic energy grows by more than this
+  /// fraction of the state's energy beyond the work of the loads and the active stress
+  /// counts as failed and is retried with substeps, in [0, inf]; infinity turns the
+  /// check off (saves one pass of energy sums). The linearised step can gain energy when
+  /// one step spans a large rotation (huge steps, huge loads, fast spin). Default 1e-3.
+  double max_energy_gain = 1e-3;
+  /// Convergence of the warm-started polar rotation (rotation = polar), rad, in (0, 0.1].
+  /// Default 1e-9.
+  double polar_tolerance_rad = 1e-9;
   /// OpenMP threads, 0 = all cores. Default 0.
   int threads = 0;
   /// @throws std::invalid_argument naming the field.
@@ -123,10 +132,11 @@ class Simulator {
   void set_active_tension(std::vector<double> tension_pa);
 
  private:
-  bool advance(double h, StepReport& r, std::string& why);
+  bool advance(double h, bool last_chance, StepReport& r, std::string& why);
   void update_node_masses();
   void apply_fixed();
   void update_block_rotations();
+  double update_rotations(bool with_energy);
 
   Model model_;
   SimulatorSettings settings_;
@@ -153,6 +163,10 @@ class Simulator {
   Eigen::VectorXd f_, rhs_, vfree_;
   Eigen::VectorXd vfree_prev_, guess_;  // last two solutions (warm start extrapolation)
   double last_h_ = -1;
+  Eigen::VectorXd f_active_;        // 3N, active-stress forces of the step (when active)
+  bool rotations_current_ = false;  // R_ belongs to x_ (computed by the last step's checks)
+  int inverted_current_ = 0;
+  double energy_floor_j_ = 0;       // energy of a uniform strain 1e-8 (round-off scale)
 };
 
 }  // namespace fiberfem::core

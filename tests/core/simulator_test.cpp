@@ -242,7 +242,7 @@ TEST(Simulator, SpinningFreeBodyConservesMomentumAndStaysBounded) {
     const core::Energies e0 = sim.energies();
     double after_1s = 0, peak_later = 0;
     for (int s = 1; s <= 360; ++s) {
-      ASSERT_EQ(sim.step().status, core::StepStatus::ok);
+      ASSERT_NE(sim.step().status, core::StepStatus::failed);
       const core::Energies en = sim.energies();
       const double e = en.kinetic_j + en.elastic_j;
       ASSERT_TRUE(std::isfinite(e));
@@ -434,25 +434,55 @@ TEST(Simulator, FailedStepIsRetriedWithSubsteps) {
 // When every retry fails the state is rolled back exactly and the report says why.
 TEST(Simulator, StepThatAlwaysFailsIsRolledBack) {
   const core::Model model = core::make_cantilever(small_beam());
-  core::SimulatorSettings st = settings(core::LinearSolverKind::direct);
-  st.max_inverted_fraction = 1e-6;  // any inverted element fails the step
+  core::SimulatorSettings st = settings(core::LinearSolverKind::pcg, 1e-12);
+  st.solver.preconditioner = core::PreconditionerKind::block_jacobi;
+  st.solver.max_iterations = 1;         // one CG iteration cannot reach...
+  st.solver.failure_residual = 1e-11;   // ...this, at any substep
   st.max_substep_halvings = 2;
   core::Simulator sim(model, st);
-  core::Positions x = model.mesh.rest_positions();
-  const core::Tet& t = model.mesh.tets().back();  // at the free end
-  x.col(t[0]) += 2.0 * (x.col(t[1]) + x.col(t[2]) + x.col(t[3]) - 3.0 * x.col(t[0])) / 3.0;  // through the face
-  const core::Positions v = core::Positions::Constant(3, model.mesh.num_nodes(), 0.01);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  core::Positions x = model.mesh.rest_positions(), v = core::Positions::Zero(3, model.mesh.num_nodes());
+  for (int i = 0; i < model.mesh.num_nodes(); ++i) v.col(i) = 0.01 * Vec3(u(rng), u(rng), u(rng));
   sim.set_state(x, v);
-  ASSERT_GT(sim.count_inverted(), 0);
   const core::Positions x0 = sim.positions(), v0 = sim.velocities();
   const core::StepReport r = sim.step();
   EXPECT_EQ(r.status, core::StepStatus::failed);
   EXPECT_EQ(r.attempts, 3);
-  EXPECT_NE(r.message.find("inverted"), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("dt/4"), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("failure_residual"), std::string::npos) << r.message;
   EXPECT_EQ(max_abs_diff(sim.positions(), x0), 0.0);
   EXPECT_EQ(max_abs_diff(sim.velocities(), v0), 0.0);
   EXPECT_EQ(sim.time_s(), 0.0);
   EXPECT_EQ(sim.step_count(), 0);
+}
+
+// The inversion limit judges the state a step leaves: a very soft free tetrahedron whose
+// vertex flies through the opposite face within the step fails it (and is rolled back).
+TEST(Simulator, InversionLimitFailsAStepThatEndsInverted) {
+  core::Positions X(3, 4);
+  X << 0, 0.01, 0, 0, 0, 0, 0.01, 0, 0, 0, 0, 0.01;
+  core::Model model(core::TetMesh(X, {{0, 1, 2, 3}}));
+  model.region_materials.push_back(core::Material::isotropic(1.0, 0.3, 1000));  // 1 Pa
+  model.validate();
+  core::SimulatorSettings st = settings(core::LinearSolverKind::direct);
+  st.max_inverted_fraction = 0.5;
+  st.max_substep_halvings = 1;
+  core::Simulator sim(model, st);
+  core::Positions v = core::Positions::Zero(3, 4);
+  v.col(3) = Vec3(0, 0, -1.5);  // 2.5 cm in a 1/60 s step, through the face z = 0
+  sim.set_state(X, v);
+  const core::StepReport r = sim.step();
+  EXPECT_EQ(r.status, core::StepStatus::failed) << r.message;
+  EXPECT_NE(r.message.find("inverted elements after the step"), std::string::npos) << r.message;
+  EXPECT_EQ(max_abs_diff(sim.positions(), X), 0.0);
+  // Without the limit the same step is taken and counted.
+  st.max_inverted_fraction = 1.0;
+  core::Simulator free_sim(model, st);
+  free_sim.set_state(X, v);
+  const core::StepReport r2 = free_sim.step();
+  EXPECT_NE(r2.status, core::StepStatus::failed);
+  EXPECT_EQ(r2.inverted_elements, 1);
 }
 
 // Changes between steps: a new material, gravity or time step gives the static answer of
@@ -509,6 +539,8 @@ TEST(Simulator, InvalidSettingsAndChangesAreRefusedByName) {
   expect_invalid(with([](auto& s) { s.max_substep_halvings = 13; }), {"max_substep_halvings"});
   expect_invalid(with([](auto& s) { s.max_inverted_fraction = 0; }), {"max_inverted_fraction"});
   expect_invalid(with([](auto& s) { s.threads = -1; }), {"threads"});
+  expect_invalid(with([](auto& s) { s.max_energy_gain = -1; }), {"max_energy_gain"});
+  expect_invalid(with([](auto& s) { s.polar_tolerance_rad = 0; }), {"polar_tolerance_rad"});
   expect_invalid(with([](auto& s) { s.solver.tolerance = 1; }), {"tolerance"});
   expect_invalid(with([](auto& s) { s.solver.max_iterations = 0; }), {"max_iterations"});
   expect_invalid(with([](auto& s) { s.solver.refresh_iterations = 0; }), {"refresh_iterations"});
