@@ -19,8 +19,18 @@ namespace core = fiberfem::core;
 
 namespace {
 
-int run_builtin(const std::string& scene, double seconds, double dt, const std::string& solver,
-                const std::string& rotation, std::array<int, 3> cells, double tol) {
+struct RunOptions {
+  std::string builtin = "cantilever", solver = "pcg", preconditioner = "cholesky", rotation = "polar";
+  double seconds = 2.0, dt = 1.0 / 60.0, tol = 1e-6, max_energy_gain = 1e-3;
+  std::vector<int> cells{20, 2, 2};
+};
+
+int run_builtin(const RunOptions& o) {
+  const std::string& scene = o.builtin;
+  const std::string& solver = o.solver;
+  const std::string& rotation = o.rotation;
+  const double seconds = o.seconds, dt = o.dt, tol = o.tol;
+  const std::array<int, 3> cells{o.cells[0], o.cells[1], o.cells[2]};
   if (scene != "cantilever") {
     std::cerr << "fiberfem: unknown built-in scene '" << scene << "' (available: cantilever)\n";
     return 2;
@@ -34,6 +44,9 @@ int run_builtin(const std::string& scene, double seconds, double dt, const std::
   st.dt_s = dt;
   st.solver.method = solver == "direct" ? core::LinearSolverKind::direct : core::LinearSolverKind::pcg;
   st.solver.tolerance = tol;
+  st.solver.preconditioner =
+      o.preconditioner == "block_jacobi" ? core::PreconditionerKind::block_jacobi : core::PreconditionerKind::cholesky;
+  st.max_energy_gain = o.max_energy_gain;
   st.rotation = rotation == "polar" ? core::RotationMethod::polar : core::RotationMethod::svd;
   core::Simulator sim(model, st);
   const int tip = [&] {
@@ -88,19 +101,23 @@ int main(int argc, char** argv) {
   CLI::App app{"fiberfem: fiber-incorporated corotational FEM"};
   app.require_subcommand(1);
   auto* run = app.add_subcommand("run", "Run a scene in batch (no bus)");
-  std::string builtin = "cantilever", solver = "pcg", rotation = "svd";
-  double seconds = 2.0, dt = 1.0 / 60.0, tol = 1e-6;
-  std::vector<int> cells{20, 2, 2};
-  run->add_option("--builtin", builtin, "Built-in scene: cantilever")->capture_default_str();
-  run->add_option("--until", seconds, "Simulated time, s")->capture_default_str()->check(CLI::PositiveNumber);
-  run->add_option("--dt", dt, "Time step, s")->capture_default_str()->check(CLI::Range(1e-6, 10.0));
-  run->add_option("--solver", solver, "pcg | direct")->capture_default_str()->check(CLI::IsMember({"pcg", "direct"}));
-  run->add_option("--tolerance", tol, "PCG relative tolerance")->capture_default_str()->check(CLI::Range(1e-14, 0.5));
-  run->add_option("--rotation", rotation, "svd | polar")->capture_default_str()->check(CLI::IsMember({"svd", "polar"}));
-  run->add_option("--cells", cells, "Cells along x y z")->expected(3)->capture_default_str()->check(CLI::Range(1, 2000));
+  RunOptions o;
+  run->add_option("--builtin", o.builtin, "Built-in scene: cantilever")->capture_default_str();
+  run->add_option("--until", o.seconds, "Simulated time, s")->capture_default_str()->check(CLI::PositiveNumber);
+  run->add_option("--dt", o.dt, "Time step, s")->capture_default_str()->check(CLI::Range(1e-6, 10.0));
+  run->add_option("--solver", o.solver, "pcg | direct")->capture_default_str()->check(CLI::IsMember({"pcg", "direct"}));
+  run->add_option("--preconditioner", o.preconditioner, "cholesky | block_jacobi (PCG)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"cholesky", "block_jacobi"}));
+  run->add_option("--tolerance", o.tol, "PCG relative tolerance")->capture_default_str()->check(CLI::Range(1e-14, 0.5));
+  run->add_option("--rotation", o.rotation, "polar | svd")->capture_default_str()->check(CLI::IsMember({"svd", "polar"}));
+  // Validated by SimulatorSettings (CLI11's range checks refuse inf, which turns it off).
+  run->add_option("--max-energy-gain", o.max_energy_gain, "Energy check per step, relative (inf: off)")
+      ->capture_default_str();
+  run->add_option("--cells", o.cells, "Cells along x y z")->expected(3)->capture_default_str()->check(CLI::Range(1, 2000));
   CLI11_PARSE(app, argc, argv);
   try {
-    if (*run) return run_builtin(builtin, seconds, dt, solver, rotation, {cells[0], cells[1], cells[2]}, tol);
+    if (*run) return run_builtin(o);
   } catch (const std::exception& e) {
     std::cerr << "fiberfem: " << e.what() << "\n";
     return 1;

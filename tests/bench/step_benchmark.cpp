@@ -24,6 +24,7 @@
 #include <ctime>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <numeric>
 #include <sstream>
 #include <string>
@@ -46,6 +47,8 @@ struct Case {
   core::LinearSolverKind solver = core::LinearSolverKind::pcg;
   core::RotationMethod rotation = core::RotationMethod::polar;
   core::PreconditionerKind preconditioner = core::PreconditionerKind::cholesky;
+  bool energy_check = true;   // false: max_energy_gain = inf
+  bool on_large = true;       // run on the large beam too
 };
 
 struct Result {
@@ -94,6 +97,7 @@ core::Model make_beam(const Size& size, bool fiber) {
 }
 
 int g_refresh = 8;
+double g_energy_gain = core::SimulatorSettings{}.max_energy_gain;
 
 Result run_case(const Size& size, const Case& c, double tol) {
   reset_peak_rss();
@@ -106,6 +110,7 @@ Result run_case(const Size& size, const Case& c, double tol) {
   st.rotation = c.rotation;
   st.solver.preconditioner = c.preconditioner;
   st.solver.refresh_iterations = g_refresh;
+  st.max_energy_gain = c.energy_check ? g_energy_gain : std::numeric_limits<double>::infinity();
   Result r;
   r.tets = model.mesh.num_elements();
   r.nodes = model.mesh.num_nodes();
@@ -157,6 +162,8 @@ int main(int argc, char** argv) {
   app.add_option("--out", out, "Also write the Markdown report to this file");
   app.add_option("--tolerance", tol, "PCG relative tolerance")->capture_default_str();
   app.add_option("--refresh-iterations", refresh, "Cholesky preconditioner refresh threshold")->capture_default_str();
+  app.add_option("--max-energy-gain", g_energy_gain, "SimulatorSettings::max_energy_gain (inf: off)")
+      ->capture_default_str();
   app.add_option("--threads", threads, "OpenMP threads (0 = all cores)")->capture_default_str();
   app.add_option("--sizes", only, "Subset of sizes: small medium large");
   int only_case = -1;
@@ -177,10 +184,12 @@ int main(int argc, char** argv) {
   const std::vector<Case> cases = {
       {true, core::LinearSolverKind::pcg, core::RotationMethod::polar},
       {false, core::LinearSolverKind::pcg, core::RotationMethod::polar},
-      {true, core::LinearSolverKind::pcg, core::RotationMethod::svd},
-      {true, core::LinearSolverKind::pcg, core::RotationMethod::polar, core::PreconditionerKind::block_jacobi},
+      {true, core::LinearSolverKind::pcg, core::RotationMethod::svd, core::PreconditionerKind::cholesky, true, false},
+      {true, core::LinearSolverKind::pcg, core::RotationMethod::polar, core::PreconditionerKind::block_jacobi, true, false},
       {true, core::LinearSolverKind::direct, core::RotationMethod::polar},
       {false, core::LinearSolverKind::direct, core::RotationMethod::polar},
+      {true, core::LinearSolverKind::pcg, core::RotationMethod::polar, core::PreconditionerKind::cholesky, false},
+      {false, core::LinearSolverKind::pcg, core::RotationMethod::polar, core::PreconditionerKind::cholesky, false},
   };
 
   std::ostringstream md;
@@ -198,7 +207,7 @@ int main(int argc, char** argv) {
   for (const Size& size : sizes) {
     std::vector<Result> res;
     for (const Case& c : cases) {
-      if (only_case >= 0 && &c != &cases[static_cast<size_t>(only_case)]) {
+      if ((only_case >= 0 && &c != &cases[static_cast<size_t>(only_case)]) || (size.name == "large" && !c.on_large)) {
         res.push_back({});
         continue;
       }
@@ -208,7 +217,7 @@ int main(int argc, char** argv) {
       row.setf(std::ios::fixed);
       row.precision(2);
       row << "| " << size.name << " | " << r.tets << " | " << (c.fiber ? "fiber" : "isotropic") << " | "
-          << solver_name(c, tol) << " | " << (c.rotation == core::RotationMethod::svd ? "svd" : "polar") << " | ";
+          << solver_name(c, tol) << (c.energy_check ? "" : ", energy check off") << " | " << (c.rotation == core::RotationMethod::svd ? "svd" : "polar") << " | ";
       row.precision(1);
       row << 1.0 / r.mean_step_s << " | ";
       row.precision(2);
@@ -223,14 +232,15 @@ int main(int argc, char** argv) {
       md << row.str();
       std::cout << row.str() << std::flush;
     }
-    for (int k : {0, 4}) {
+    for (int k : {0, 4, 6}) {
       if (only_case >= 0) break;
       const Result& f = res[static_cast<size_t>(k)];
       const Result& i = res[static_cast<size_t>(k) + 1];
       std::ostringstream row;
       row.setf(std::ios::fixed);
       row.precision(3);
-      row << "| " << size.name << " | " << solver_name(cases[static_cast<size_t>(k)], tol) << " | "
+      row << "| " << size.name << " | " << solver_name(cases[static_cast<size_t>(k)], tol)
+          << (cases[static_cast<size_t>(k)].energy_check ? "" : ", energy check off") << " | "
           << f.median_step_s / i.median_step_s << " | "
           << (f.rotations_s + f.assembly_s) / (i.rotations_s + i.assembly_s) << " | "
           << (f.solve_s / std::max(f.iterations, 1.0)) / (i.solve_s / std::max(i.iterations, 1.0)) << " |\n";
