@@ -20,11 +20,6 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// One cache line per thread for reductions inside the coloured loops.
-struct alignas(64) ThreadAcc {
-  double energy = 0;
-  int inverted = 0;
-};
 
 }  // namespace
 
@@ -205,7 +200,9 @@ double Simulator::update_rotations(bool with_energy) {
 bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& why) {
   const int ne = model_.mesh.num_elements();
   const int nthreads = omp_get_max_threads();
-  std::vector<ThreadAcc> acc(static_cast<size_t>(nthreads));
+  acc_.resize(static_cast<size_t>(nthreads));  // no allocation after the first step
+  std::fill(acc_.begin(), acc_.end(), ThreadAcc{});
+  std::vector<ThreadAcc>& acc = acc_;
 
   // Phase 1: rotations (embarrassingly parallel), unless the energy check of the last
   // step already computed them for this state.
@@ -381,9 +378,15 @@ void Simulator::update_block_rotations() {
 StepReport Simulator::step() {
   const auto t0 = Clock::now();
   StepReport r;
-  const Eigen::VectorXd x0 = x_, v0 = v_, vfree0 = vfree_, vprev0 = vfree_prev_;
+  // Rollback copies into members sized once: a step allocates nothing in steady state.
+  x0_ = x_;
+  v0_ = v_;
+  vfree0_ = vfree_;
+  vprev0_ = vfree_prev_;
+  const Eigen::VectorXd &x0 = x0_, &v0 = v0_, &vfree0 = vfree0_, &vprev0 = vprev0_;
   const double last_h0 = last_h_;
-  const std::vector<Eigen::Quaterniond> q0 = settings_.rotation == RotationMethod::polar ? q_ : std::vector<Eigen::Quaterniond>{};
+  const bool keep_q = settings_.rotation == RotationMethod::polar;
+  if (keep_q) q0_ = q_;
   const double t_start = time_s_;
   std::string why;
   for (int level = 0; level <= settings_.max_substep_halvings; ++level) {
@@ -428,7 +431,7 @@ StepReport Simulator::step() {
     vfree_prev_ = vprev0;
     rotations_current_ = false;
     last_h_ = last_h0;
-    if (!q0.empty()) q_ = q0;
+    if (keep_q) q_ = q0_;
     time_s_ = t_start;
     r.attempts = level + 1;
     r.status = StepStatus::failed;

@@ -84,6 +84,12 @@ struct Energies {
 };
 
 class Simulator {
+  // One cache line per thread for reductions inside the coloured loops.
+  struct alignas(64) ThreadAcc {
+    double energy = 0;
+    int inverted = 0;
+  };
+
  public:
   /// Validates the model and settings and precomputes every element cache.
   /// @throws std::invalid_argument naming what is wrong.
@@ -166,7 +172,10 @@ class Simulator {
   Eigen::VectorXd f_active_;        // 3N, active-stress forces of the step (when active)
   bool rotations_current_ = false;  // R_ belongs to x_ (computed by the last step's checks)
   int inverted_current_ = 0;
-  double energy_floor_j_ = 0;       // energy of a uniform strain 1e-8 (round-off scale)
+  double energy_floor_j_ = 0;
+  std::vector<ThreadAcc> acc_;
+  Eigen::VectorXd x0_, v0_, vfree0_, vprev0_;  // state at the start of a step (rollback)
+  std::vector<Eigen::Quaterniond> q0_;       // energy of a uniform strain 1e-8 (round-off scale)
 };
 
 }  // namespace fiberfem::core
