@@ -165,18 +165,32 @@ class CholeskyFactor {
 
 /// What the warp preconditioner shares with its solver: the factor of an earlier matrix,
 /// the node-block rotations at factorisation time, and the current ones.
-struct WarpState {
+/// One lagged factor: the factorisation of an earlier matrix and the node-block rotations
+/// it was made at.
+struct FactorSlot {
   CholeskyFactor factor;
+  std::vector<Mat3> at_factor;
+  Eigen::Index rows = -1;
+  bool stale = true;       // refactorise before the next use
+  double key = 0;          // which matrix family (the step size h that built it)
+  long last_used = 0;
+};
+
+/// What the warp preconditioner shares with its solver: the slot in use, the node blocks,
+/// and the current node-block rotations.
+struct WarpState {
+  FactorSlot* slot = nullptr;
   std::vector<int> starts;        // node blocks
-  std::vector<Mat3> at_factor;    // block rotations when factorised
   std::vector<Mat3> current;      // block rotations now
   std::vector<Mat3> warp;         // current * at_factor^T, per block
   mutable Eigen::VectorXd work;
+  const CholeskyFactor& factor() const { return slot->factor; }
   void update_warp() {
+    const std::vector<Mat3>& at = slot->at_factor;
     const size_t nb = current.size();
     warp.resize(nb);
     for (size_t k = 0; k < nb; ++k)
-      warp[k] = k < at_factor.size() ? Mat3(current[k] * at_factor[k].transpose()) : Mat3::Identity();
+      warp[k] = k < at.size() ? Mat3(current[k] * at[k].transpose()) : Mat3::Identity();
   }
 };
 
@@ -201,7 +215,7 @@ class WarpCholeskyPreconditioner {
   void _solve_impl(const Rhs& b, Dest& x) const {
     const bool warp = !s_->warp.empty() && s_->starts.size() == s_->warp.size() + 1;
     if (!warp) {
-      x = s_->factor.solve(b);
+      x = s_->factor().solve(b);
       return;
     }
     Eigen::VectorXd& y = s_->work;
@@ -212,7 +226,7 @@ class WarpCholeskyPreconditioner {
       if (s_->starts[static_cast<size_t>(k) + 1] - r0 == 3)
         y.segment<3>(r0) = s_->warp[static_cast<size_t>(k)].transpose() * b.template segment<3>(r0);
     }
-    x = s_->factor.solve(y);
+    x = s_->factor().solve(y);
     for (int k = 0; k < nb; ++k) {
       const int r0 = s_->starts[static_cast<size_t>(k)];
       if (s_->starts[static_cast<size_t>(k) + 1] - r0 == 3) {
@@ -260,15 +274,17 @@ class PcgSolver final : public LinearSolver {
   SolveStats solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
     if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_cg_, A, b, x);
     SolveStats st;
-    if (stale_ || !warp_.factor.ok() || factor_rows_ != A.rows()) refactor(A, st);
-    if (!warp_.factor.ok()) return failed(st);
+    FactorSlot& slot = select_slot();
+    warp_.slot = &slot;
+    if (slot.stale || !slot.factor.ok() || slot.rows != A.rows()) refactor(A, slot, st);
+    if (!slot.factor.ok()) return failed(st);
     warp_.update_warp();
     const Eigen::VectorXd x0 = x;
     SolveStats cg = run(warp_cg_, A, b, x);
     if (!cg.ok && st.factorizations == 0) {
       // The old factor was too far from this matrix: refresh it and solve again.
-      refactor(A, st);
-      if (!warp_.factor.ok()) return failed(st);
+      refactor(A, slot, st);
+      if (!slot.factor.ok()) return failed(st);
       warp_.update_warp();
       const int first = cg.iterations;
       x = x0;
@@ -276,8 +292,32 @@ class PcgSolver final : public LinearSolver {
       cg.iterations += first;
     }
     cg.factorizations = st.factorizations;
-    stale_ = cg.iterations > s_.refresh_iterations;
+    slot.stale = cg.iterations > s_.refresh_iterations;
     return cg;
+  }
+
+  // Factors are kept per matrix family (the step size): a step retried with substeps, and
+  // the full step after it, each find their own factor instead of refactorising back and
+  // forth. At most kSlots factors (least recently used replaced).
+  static constexpr size_t kSlots = 2;
+  FactorSlot& select_slot() {
+    ++clock_;
+    FactorSlot* lru = nullptr;
+    for (auto& sl : slots_) {
+      if (sl->key == key_) {
+        sl->last_used = clock_;
+        return *sl;
+      }
+      if (!lru || sl->last_used < lru->last_used) lru = sl.get();
+    }
+    if (slots_.size() < kSlots) {
+      slots_.push_back(std::make_unique<FactorSlot>());
+      lru = slots_.back().get();
+    }
+    lru->key = key_;
+    lru->stale = true;
+    lru->last_used = clock_;
+    return *lru;
   }
 
  public:
@@ -290,7 +330,10 @@ class PcgSolver final : public LinearSolver {
   }
   bool uses_block_rotations() const override { return s_.preconditioner == PreconditionerKind::cholesky; }
   void set_block_rotations(const std::vector<Mat3>& rotations) override { warp_.current = rotations; }
-  void invalidate() override { stale_ = true; }
+  void invalidate() override {
+    for (auto& sl : slots_) sl->stale = true;
+  }
+  void set_matrix_key(double key) override { key_ = key; }
 
  private:
   template <class Cg>
@@ -309,11 +352,11 @@ class PcgSolver final : public LinearSolver {
     st.ok = x.allFinite() && std::isfinite(st.relative_residual) && cg.info() == Eigen::Success;
     return st;
   }
-  void refactor(const SparseMatrix& A, SolveStats& st) {
-    warp_.factor.factorize(A);
-    warp_.at_factor = warp_.current;
-    factor_rows_ = A.rows();
-    stale_ = false;
+  void refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats& st) {
+    slot.factor.factorize(A);
+    slot.at_factor = warp_.current;
+    slot.rows = A.rows();
+    slot.stale = false;
     ++st.factorizations;
   }
   static SolveStats failed(SolveStats st) {
@@ -326,8 +369,9 @@ class PcgSolver final : public LinearSolver {
   Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper, BlockJacobiPreconditioner> jacobi_cg_;
   WarpState warp_;
   Eigen::ConjugateGradient<SparseMatrix, Eigen::Lower | Eigen::Upper, WarpCholeskyPreconditioner> warp_cg_;
-  bool stale_ = true;
-  Eigen::Index factor_rows_ = -1;
+  std::vector<std::unique_ptr<FactorSlot>> slots_;
+  double key_ = 0;
+  long clock_ = 0;
 };
 
 class DirectSolver final : public LinearSolver {

@@ -71,6 +71,9 @@ class LinearSolver {
   /// The matrix changed by more than a step's motion (time step, material, damping):
   /// solvers that reuse a factorisation refresh it at the next solve.
   virtual void invalidate() {}
+  /// Names the family of the next matrices (the simulator passes the step size h):
+  /// solvers that reuse factorisations keep one per family.
+  virtual void set_matrix_key(double /*key*/) {}
 };
 
 /// Makes the solver for `settings` (validated).

@@ -289,6 +289,7 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
     vfree_prev_ = vfree_;
   }
   last_h_ = h;
+  solver_->set_matrix_key(h);
   if (solver_->uses_block_rotations()) {
     update_block_rotations();
     solver_->set_block_rotations(block_R_);
