@@ -20,7 +20,7 @@ namespace fiberfem::core {
 struct SimulatorSettings {
   double dt_s = 1.0 / 60.0;  ///< Time step, s, in (0, 10]. Default 1/60.
   SolverSettings solver;     ///< Linear solver; see SolverSettings.
-  RotationMethod rotation = RotationMethod::svd;  ///< svd | polar. Default svd.
+  RotationMethod rotation = RotationMethod::polar;  ///< polar | svd. Default polar (5x cheaper, agrees to polar_tolerance_rad).
   bool corotation = true;    ///< false: plain linear FEM (R = I), the baseline. Default true.
   /// On failure a step is retried with 2, 4, ... 2^k substeps, k up to this, in [0, 12].
   /// Default 4 (16 substeps).
