@@ -142,7 +142,13 @@ StaticReport solve_static(Model model, Positions& x_io, const StaticSettings& s)
         xn += full;
         rnew = eq.residual(xn, target);
         rnew_n = rnew.norm();
-        if (std::isfinite(rnew_n) && rnew_n < (1 - 1e-4 * alpha) * rn) break;
+        // A safeguard, not a monotone descent: Newton with the consistent tangent crosses
+        // a large rotation with a residual that first grows by orders of magnitude and then
+        // falls quadratically, and a residual-decrease test stalls there (measured on a
+        // bent bar: 1,939 iterations and 256 cut-backs with it, 10 iterations without).
+        // Backtrack only when the residual is not finite or grows beyond kMaxGrowth.
+        constexpr double kMaxGrowth = 1e4;
+        if (std::isfinite(rnew_n) && rnew_n < kMaxGrowth * rn) break;
         alpha *= 0.5;
       }
       ++rep.newton_iterations;

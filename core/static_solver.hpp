@@ -18,7 +18,10 @@ struct StaticSettings {
   /// Consistent tangent (with dR/dx, non-symmetric, sparse LU) or the warped stiffness
   /// R K R^T alone (symmetric; converges only linearly). Default true.
   bool consistent_tangent = true;
-  bool line_search = true;            ///< Backtracking on the residual norm. Default true.
+  /// Backtracking (halving the step) when the new residual is not finite or more than
+  /// 1e4 times the current one: a safeguard, since Newton on large rotations passes through
+  /// larger residuals on its way to quadratic convergence. Default true.
+  bool line_search = true;
   int max_cutbacks = 8;               ///< Halvings of a load increment that fails, >= 0. Default 8.
   RotationMethod rotation = RotationMethod::svd;  ///< Default svd.
   bool corotation = true;             ///< false: plain linear FEM. Default true.
