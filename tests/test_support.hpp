@@ -26,6 +26,20 @@ void expect_invalid(F&& f, std::initializer_list<std::string> fragments) {
   }
 }
 
+/// The compliance of PHYSICS.md section 2 (fiber along local z, Voigt xx, yy, zz, xy, yz,
+/// zx, engineering shear), written out independently of core/material.cpp: the tests'
+/// oracle for the material.
+inline core::Mat6 engineering_compliance(const core::EngineeringConstants& c) {
+  core::Mat6 S = core::Mat6::Zero();
+  S(0, 0) = S(1, 1) = 1 / c.E_T;
+  S(0, 1) = S(1, 0) = -c.nu_T / c.E_T;
+  S(0, 2) = S(2, 0) = S(1, 2) = S(2, 1) = -c.nu_LT / c.E_L;
+  S(2, 2) = 1 / c.E_L;
+  S(3, 3) = 2 * (1 + c.nu_T) / c.E_T;
+  S(4, 4) = S(5, 5) = 1 / c.G_L;
+  return S;
+}
+
 /// A random rotation from a seeded generator.
 inline core::Mat3 random_rotation(std::mt19937& rng) {
   std::normal_distribution<double> n(0.0, 1.0);

@@ -34,16 +34,8 @@ core::EngineeringConstants constants() {
   return c;
 }
 
-// The compliance of PHYSICS.md section 2 written out independently of core/material.cpp.
 Eigen::Matrix<double, 6, 6> compliance(const core::EngineeringConstants& c) {
-  Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Zero();
-  S(0, 0) = S(1, 1) = 1 / c.E_T;
-  S(0, 1) = S(1, 0) = -c.nu_T / c.E_T;
-  S(0, 2) = S(2, 0) = S(1, 2) = S(2, 1) = -c.nu_LT / c.E_L;
-  S(2, 2) = 1 / c.E_L;
-  S(3, 3) = 2 * (1 + c.nu_T) / c.E_T;
-  S(4, 4) = S(5, 5) = 1 / c.G_L;
-  return S;
+  return fiberfem::testing::engineering_compliance(c);
 }
 
 // Expected homogeneous strain tensor for global stress sigma and fiber f: rotate the stress
