@@ -3,11 +3,13 @@
 // and with beam theory.
 
 #include "core/builtin_scenes.hpp"
+#include "scene/scene.hpp"
 #include "core/simulator.hpp"
 #include "core/static_solver.hpp"
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -20,10 +22,57 @@ namespace core = fiberfem::core;
 namespace {
 
 struct RunOptions {
+  std::string scene_file;
   std::string builtin = "cantilever", solver = "pcg", preconditioner = "cholesky", rotation = "polar";
   double seconds = 2.0, dt = 1.0 / 60.0, tol = 1e-6, max_energy_gain = 1e-3;
   std::vector<int> cells{20, 2, 2};
 };
+
+// Runs a scene file: dynamic to --until with a status line, or a static solve; prints the
+// probes' displacements.
+int run_scene(const RunOptions& o) {
+  const fiberfem::scene::Scene sc = fiberfem::scene::load_scene(o.scene_file);
+  const core::Model& model = sc.model;
+  std::printf("fiberfem: scene '%s': %d tets, %d nodes, %d regions, %s\n", sc.name.c_str(), model.mesh.num_elements(),
+              model.mesh.num_nodes(), model.mesh.num_regions(), sc.mode == fiberfem::scene::Mode::dynamic ? "dynamic" : "static");
+  auto print_probes = [&](const core::Positions& x) {
+    for (const auto& p : sc.probes) {
+      const core::Vec3 u = p.displacement(model.mesh, x);
+      std::printf("probe %s: displacement [%+.6e, %+.6e, %+.6e] m\n", p.name.c_str(), u.x(), u.y(), u.z());
+    }
+  };
+  if (sc.mode == fiberfem::scene::Mode::static_) {
+    core::Positions x;
+    core::StaticSettings ss;
+    ss.rotation = sc.settings.rotation;
+    const core::StaticReport r = core::solve_static(model, x, ss);
+    std::printf("static: %s after %d Newton iterations, relative residual %.2e\n", r.converged ? "converged" : "NOT converged",
+                r.newton_iterations, r.relative_residual);
+    print_probes(x);
+    return r.converged ? 0 : 1;
+  }
+  core::Simulator sim(model, sc.settings);
+  const bool tty = isatty(fileno(stdout));
+  const int steps = std::max(1, static_cast<int>(std::lround(o.seconds / sc.settings.dt_s)));
+  int failed = 0;
+  double work = 0;
+  for (int s = 1; s <= steps; ++s) {
+    const core::StepReport r = sim.step();
+    work += r.time.total_s;
+    if (r.status == core::StepStatus::failed) ++failed;
+    if ((tty && s % 10 == 0) || s == steps || (!tty && s % std::max(1, steps / 5) == 0)) {
+      const core::Vec3 u = sc.probes.empty() ? core::Vec3::Zero() : sc.probes[0].displacement(model.mesh, sim.positions());
+      std::printf("%st=%7.3f s  step %5d/%d  %s%s%+.3e m  iters %3d  %s  %6.0f steps/s%s", tty ? "\r" : "", r.time_s, s, steps,
+                  sc.probes.empty() ? "" : sc.probes[0].name.c_str(), sc.probes.empty() ? "" : " |u| ", u.norm(),
+                  r.solver_iterations, core::to_string(r.status), s / work, tty ? "" : "\n");
+      std::fflush(stdout);
+    }
+  }
+  if (tty) std::printf("\n");
+  std::printf("summary: %d steps, %d failed\n", steps, failed);
+  print_probes(sim.positions());
+  return failed == 0 ? 0 : 1;
+}
 
 int run_builtin(const RunOptions& o) {
   const std::string& scene = o.builtin;
@@ -104,6 +153,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   auto* run = app.add_subcommand("run", "Run a scene in batch (no bus)");
   RunOptions o;
+  run->add_option("--scene", o.scene_file, "Scene file (YAML, docs/scenes.md); overrides --builtin");
   run->add_option("--builtin", o.builtin, "Built-in scene: cantilever")->capture_default_str();
   run->add_option("--until", o.seconds, "Simulated time, s")->capture_default_str()->check(CLI::PositiveNumber);
   run->add_option("--dt", o.dt, "Time step, s")->capture_default_str()->check(CLI::Range(1e-6, 10.0));
@@ -119,7 +169,7 @@ int main(int argc, char** argv) {
   run->add_option("--cells", o.cells, "Cells along x y z")->expected(3)->capture_default_str()->check(CLI::Range(1, 2000));
   CLI11_PARSE(app, argc, argv);
   try {
-    if (*run) return run_builtin(o);
+    if (*run) return o.scene_file.empty() ? run_builtin(o) : run_scene(o);
   } catch (const std::exception& e) {
     std::cerr << "fiberfem: " << e.what() << "\n";
     return 1;

@@ -1,0 +1,457 @@
+#include "scene/scene.hpp"
+
+#include "core/box_generator.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <set>
+#include <sstream>
+
+namespace fiberfem::scene {
+namespace {
+
+using core::Vec3;
+
+// Error helpers: every message is "<origin>:<line>: <key path>: <what>".
+struct Ctx {
+  std::string origin;
+  [[noreturn]] void fail(const YAML::Node& at, const std::string& path, const std::string& what) const {
+    const int line = at.IsDefined() && at.Mark().line >= 0 ? at.Mark().line + 1 : 0;
+    throw SceneError(origin + ":" + std::to_string(line) + ": " + path + ": " + what);
+  }
+};
+
+std::string join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s;
+}
+
+// A mapping whose keys are checked: reading marks a key used, finish() refuses the rest.
+class Map {
+ public:
+  Map(const Ctx& ctx, const YAML::Node& node, std::string path, std::vector<std::string> allowed)
+      : ctx_(ctx), node_(node), path_(std::move(path)), allowed_(std::move(allowed)) {
+    if (!node.IsMap()) ctx_.fail(node, path_, "expected a mapping with keys " + join(allowed_));
+    for (const auto& kv : node) {
+      const std::string key = kv.first.as<std::string>();
+      if (std::find(allowed_.begin(), allowed_.end(), key) == allowed_.end())
+        ctx_.fail(kv.first, sub(key), "unknown key (allowed here: " + join(allowed_) + ")");
+    }
+  }
+  bool has(const std::string& key) const { return node_[key].IsDefined() && !node_[key].IsNull(); }
+  YAML::Node operator[](const std::string& key) const { return node_[key]; }
+  std::string sub(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+  const YAML::Node& node() const { return node_; }
+
+ private:
+  const Ctx& ctx_;
+  YAML::Node node_;
+  std::string path_;
+  std::vector<std::string> allowed_;
+};
+
+double number(const Ctx& ctx, const YAML::Node& n, const std::string& path, double lo = -HUGE_VAL,
+              double hi = HUGE_VAL, bool open_lo = false) {
+  double v = 0;
+  try {
+    if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "");
+    v = n.as<double>();
+  } catch (const YAML::Exception&) {
+    ctx.fail(n, path, "expected a number");
+  }
+  if (!std::isfinite(v)) ctx.fail(n, path, "must be finite");
+  if (v < lo || (open_lo && v == lo) || v > hi) {
+    std::ostringstream s;
+    s << "must be in " << (open_lo ? "(" : "[") << lo << ", " << hi << "], got " << v;
+    ctx.fail(n, path, s.str());
+  }
+  return v;
+}
+
+int integer(const Ctx& ctx, const YAML::Node& n, const std::string& path, int lo, int hi) {
+  int v = 0;
+  try {
+    if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "");
+    v = n.as<int>();
+  } catch (const YAML::Exception&) {
+    ctx.fail(n, path, "expected an integer");
+  }
+  if (v < lo || v > hi)
+    ctx.fail(n, path, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + std::to_string(v));
+  return v;
+}
+
+std::string text(const Ctx& ctx, const YAML::Node& n, const std::string& path) {
+  if (!n.IsScalar()) ctx.fail(n, path, "expected a string");
+  return n.as<std::string>();
+}
+
+std::string choice(const Ctx& ctx, const YAML::Node& n, const std::string& path, const std::vector<std::string>& options) {
+  const std::string v = text(ctx, n, path);
+  if (std::find(options.begin(), options.end(), v) == options.end())
+    ctx.fail(n, path, "'" + v + "' is not one of " + join(options));
+  return v;
+}
+
+Vec3 vec3(const Ctx& ctx, const YAML::Node& n, const std::string& path) {
+  if (!n.IsSequence() || n.size() != 3) ctx.fail(n, path, "expected a list of three numbers");
+  return {number(ctx, n[0], path + "[0]"), number(ctx, n[1], path + "[1]"), number(ctx, n[2], path + "[2]")};
+}
+
+std::pair<Vec3, Vec3> box(const Ctx& ctx, const YAML::Node& n, const std::string& path) {
+  if (!n.IsSequence() || n.size() != 2) ctx.fail(n, path, "expected [[x0, y0, z0], [x1, y1, z1]]");
+  const Vec3 a = vec3(ctx, n[0], path + "[0]"), b = vec3(ctx, n[1], path + "[1]");
+  if ((b.array() < a.array()).any()) ctx.fail(n, path, "the second corner must not be below the first");
+  return {a, b};
+}
+
+// A node selector: plane, box or a named node set. Returns the matching nodes (sorted).
+std::vector<int> select_nodes(const Ctx& ctx, const YAML::Node& n, const std::string& path, const core::TetMesh& mesh) {
+  Map m(ctx, n, path, {"plane", "box", "node_set"});
+  std::vector<int> nodes;
+  const auto& X = mesh.rest_positions();
+  int kinds = 0;
+  if (m.has("plane")) {
+    ++kinds;
+    Map p(ctx, m["plane"], m.sub("plane"), {"axis", "value", "tol"});
+    if (!p.has("axis") || !p.has("value")) ctx.fail(m["plane"], m.sub("plane"), "needs axis and value");
+    const std::string axis = choice(ctx, p["axis"], p.sub("axis"), {"x", "y", "z"});
+    const int a = axis[0] - 'x';
+    const double value = number(ctx, p["value"], p.sub("value"));
+    const double tol = p.has("tol") ? number(ctx, p["tol"], p.sub("tol"), 0, HUGE_VAL) : 1e-9;
+    for (int i = 0; i < mesh.num_nodes(); ++i)
+      if (std::abs(X(a, i) - value) <= tol) nodes.push_back(i);
+  }
+  if (m.has("box")) {
+    ++kinds;
+    const auto [lo, hi] = box(ctx, m["box"], m.sub("box"));
+    for (int i = 0; i < mesh.num_nodes(); ++i)
+      if ((X.col(i).array() >= lo.array()).all() && (X.col(i).array() <= hi.array()).all()) nodes.push_back(i);
+  }
+  if (m.has("node_set")) {
+    ++kinds;
+    const std::string name = text(ctx, m["node_set"], m.sub("node_set"));
+    const auto& sets = mesh.node_sets();
+    const auto it = sets.find(name);
+    if (it == sets.end()) {
+      std::vector<std::string> names;
+      for (const auto& kv : sets) names.push_back(kv.first);
+      ctx.fail(m["node_set"], m.sub("node_set"), "no node set '" + name + "' (the mesh has: " + join(names) + ")");
+    }
+    nodes = it->second;
+  }
+  if (kinds != 1) ctx.fail(n, path, "give exactly one of plane, box, node_set");
+  if (nodes.empty()) ctx.fail(n, path, "matches no node");
+  return nodes;
+}
+
+core::Material material(const Ctx& ctx, const YAML::Node& n, const std::string& path) {
+  Map m(ctx, n, path,
+        {"E_L", "E_T", "nu_LT", "nu_T", "G_L", "lame", "fiber_factor", "shear_factor", "C", "E", "nu", "density"});
+  if (!m.has("density")) ctx.fail(n, path, "needs density (kg/m^3)");
+  const double rho = number(ctx, m["density"], m.sub("density"), 0, HUGE_VAL, true);
+  const bool eng = m.has("E_L") || m.has("E_T") || m.has("nu_LT") || m.has("nu_T") || m.has("G_L");
+  const bool lame = m.has("lame") || m.has("fiber_factor") || m.has("shear_factor");
+  const bool stiff = m.has("C");
+  const bool iso = m.has("E") || m.has("nu");
+  if (eng + lame + stiff + iso != 1)
+    ctx.fail(n, path, "give exactly one form: E_L/E_T/nu_LT/nu_T/G_L, lame (+ fiber_factor, shear_factor), C, or E/nu");
+  try {
+    if (eng) {
+      core::EngineeringConstants c;
+      for (const char* k : {"E_L", "E_T", "nu_LT", "nu_T", "G_L"})
+        if (!m.has(k)) ctx.fail(n, path, std::string("the engineering form needs ") + k);
+      c.E_L = number(ctx, m["E_L"], m.sub("E_L"));
+      c.E_T = number(ctx, m["E_T"], m.sub("E_T"));
+      c.nu_LT = number(ctx, m["nu_LT"], m.sub("nu_LT"));
+      c.nu_T = number(ctx, m["nu_T"], m.sub("nu_T"));
+      c.G_L = number(ctx, m["G_L"], m.sub("G_L"));
+      return core::Material::from_engineering(c, rho);
+    }
+    if (lame) {
+      if (!m.has("lame")) ctx.fail(n, path, "fiber_factor and shear_factor go with lame: [lambda, mu]");
+      const YAML::Node l = m["lame"];
+      if (!l.IsSequence() || l.size() != 2) ctx.fail(l, m.sub("lame"), "expected [lambda, mu] in Pa");
+      core::LameFiberConstants c;
+      c.lambda = number(ctx, l[0], m.sub("lame") + "[0]");
+      c.mu = number(ctx, l[1], m.sub("lame") + "[1]");
+      if (m.has("fiber_factor")) c.fiber_factor = number(ctx, m["fiber_factor"], m.sub("fiber_factor"));
+      if (m.has("shear_factor")) c.shear_factor = number(ctx, m["shear_factor"], m.sub("shear_factor"));
+      return core::Material::from_lame(c, rho);
+    }
+    if (stiff) {
+      Map C(ctx, m["C"], m.sub("C"), {"C11", "C12", "C13", "C33", "C55"});
+      core::StiffnessConstants c;
+      for (const char* k : {"C11", "C12", "C13", "C33", "C55"})
+        if (!C.has(k)) ctx.fail(m["C"], m.sub("C"), std::string("needs ") + k);
+      c.C11 = number(ctx, C["C11"], C.sub("C11"));
+      c.C12 = number(ctx, C["C12"], C.sub("C12"));
+      c.C13 = number(ctx, C["C13"], C.sub("C13"));
+      c.C33 = number(ctx, C["C33"], C.sub("C33"));
+      c.C55 = number(ctx, C["C55"], C.sub("C55"));
+      return core::Material::from_stiffness(c, rho);
+    }
+    if (!m.has("E") || !m.has("nu")) ctx.fail(n, path, "the isotropic form needs E and nu");
+    return core::Material::isotropic(number(ctx, m["E"], m.sub("E")), number(ctx, m["nu"], m.sub("nu")), rho);
+  } catch (const SceneError&) {
+    throw;
+  } catch (const std::invalid_argument& e) {
+    ctx.fail(n, path, e.what());
+  }
+}
+
+// Barycentric weights of p in element e (sum to one).
+Eigen::Vector4d barycentric(const core::TetMesh& mesh, int e, const Vec3& p) {
+  const core::Tet& t = mesh.tets()[static_cast<size_t>(e)];
+  const auto& X = mesh.rest_positions();
+  core::Mat3 D;
+  for (int j = 0; j < 3; ++j) D.col(j) = X.col(t[static_cast<size_t>(j + 1)]) - X.col(t[0]);
+  const Vec3 l = D.inverse() * (p - X.col(t[0]));
+  return {1 - l.sum(), l.x(), l.y(), l.z()};
+}
+
+core::TetMesh build_mesh(const Ctx& ctx, const Map& top) {
+  if (!top.has("mesh")) ctx.fail(top.node(), "mesh", "missing (a generator or a file)");
+  Map m(ctx, top["mesh"], "mesh", {"generator", "size", "cells", "origin", "file", "scale"});
+  if (m.has("file")) ctx.fail(m["file"], "mesh.file", "mesh files are not readable yet (issue 3); use generator: box");
+  if (!m.has("generator")) ctx.fail(top["mesh"], "mesh", "needs generator (box)");
+  const std::string gen = text(ctx, m["generator"], "mesh.generator");
+  if (gen != "box")
+    ctx.fail(m["generator"], "mesh.generator", "'" + gen + "' is not available yet (available: box)");
+  core::BoxSpec spec;
+  if (m.has("size")) spec.size_m = vec3(ctx, m["size"], "mesh.size");
+  if (m.has("cells")) {
+    const YAML::Node c = m["cells"];
+    if (!c.IsSequence() || c.size() != 3) ctx.fail(c, "mesh.cells", "expected three integers");
+    for (int i = 0; i < 3; ++i) spec.cells[static_cast<size_t>(i)] = integer(ctx, c[i], "mesh.cells[" + std::to_string(i) + "]", 1, 100000);
+  }
+  if (m.has("origin")) spec.origin_m = vec3(ctx, m["origin"], "mesh.origin");
+  if ((spec.size_m.array() <= 0).any()) ctx.fail(m["size"], "mesh.size", "every edge length must be > 0 m");
+  return core::make_box(spec);
+}
+
+}  // namespace
+
+Scene parse_scene(const std::string& yaml_text, const std::string& origin) {
+  const Ctx ctx{origin};
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::ParserException& e) {
+    throw SceneError(origin + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
+  }
+  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes"});
+
+  // Mesh, then the region of every element (first match wins).
+  core::TetMesh box_mesh = build_mesh(ctx, top);
+  if (!top.has("regions")) ctx.fail(root, "regions", "missing (at least one region with a material)");
+  const YAML::Node regions = top["regions"];
+  if (!regions.IsSequence() || regions.size() == 0) ctx.fail(regions, "regions", "expected a non-empty list");
+  const int ne = box_mesh.num_elements();
+  std::vector<int> region_of(static_cast<size_t>(ne), -1);
+  std::vector<core::Material> materials;
+  std::vector<core::RayleighDamping> dampings;
+  bool any_damping = false;
+  for (size_t r = 0; r < regions.size(); ++r) {
+    const std::string path = "regions[" + std::to_string(r) + "]";
+    Map reg(ctx, regions[r], path, {"name", "select", "material", "damping"});
+    if (!reg.has("material")) ctx.fail(regions[r], path, "needs a material");
+    materials.push_back(material(ctx, reg["material"], reg.sub("material")));
+    core::RayleighDamping d;
+    if (reg.has("damping")) {
+      Map dm(ctx, reg["damping"], reg.sub("damping"), {"mass", "stiffness"});
+      if (dm.has("mass")) d.mass_1_s = number(ctx, dm["mass"], dm.sub("mass"), 0, HUGE_VAL);
+      if (dm.has("stiffness")) d.stiffness_s = number(ctx, dm["stiffness"], dm.sub("stiffness"), 0, HUGE_VAL);
+      any_damping = any_damping || !d.is_zero();
+    }
+    dampings.push_back(d);
+    const YAML::Node sel = reg.has("select") ? reg["select"] : YAML::Node("all");
+    int matched = 0;
+    for (int e = 0; e < ne; ++e) {
+      if (region_of[static_cast<size_t>(e)] >= 0) continue;
+      bool hit = false;
+      if (sel.IsScalar()) {
+        if (sel.as<std::string>() != "all") ctx.fail(sel, reg.sub("select"), "expected all, {tag: N} or {box: [[..], [..]]}");
+        hit = true;
+      } else {
+        Map s(ctx, sel, reg.sub("select"), {"tag", "box"});
+        if (s.has("tag")) {
+          hit = box_mesh.regions()[static_cast<size_t>(e)] == integer(ctx, s["tag"], s.sub("tag"), 0, 1 << 30);
+        } else if (s.has("box")) {
+          const auto [lo, hi] = box(ctx, s["box"], s.sub("box"));
+          Vec3 c = Vec3::Zero();
+          for (int n : box_mesh.tets()[static_cast<size_t>(e)]) c += 0.25 * box_mesh.rest_positions().col(n);
+          hit = (c.array() >= lo.array()).all() && (c.array() <= hi.array()).all();
+        } else {
+          ctx.fail(sel, reg.sub("select"), "give tag or box");
+        }
+      }
+      if (hit) {
+        region_of[static_cast<size_t>(e)] = static_cast<int>(r);
+        ++matched;
+      }
+    }
+    if (matched == 0) ctx.fail(regions[r], path, "matches no element (earlier regions took them, or the selector is empty)");
+  }
+  for (int e = 0; e < ne; ++e)
+    if (region_of[static_cast<size_t>(e)] < 0)
+      ctx.fail(regions, "regions", "element " + std::to_string(e) + " is matched by no region");
+
+  core::TetMesh mesh(box_mesh.rest_positions(), box_mesh.tets(), region_of);
+  for (const auto& [name, nodes] : box_mesh.node_sets()) mesh.set_node_set(name, nodes);
+  core::Model model(std::move(mesh));
+  model.region_materials = std::move(materials);
+  if (any_damping) model.region_damping = std::move(dampings);
+
+  // Fibers.
+  model.set_uniform_fiber(Vec3::UnitX());
+  if (top.has("fibers")) {
+    Map f(ctx, top["fibers"], "fibers", {"uniform", "strokes", "rule", "file"});
+    for (const char* k : {"strokes", "rule", "file"})
+      if (f.has(k)) ctx.fail(f[k], f.sub(k), "not available yet (the heart issue adds it); use uniform");
+    if (f.has("uniform")) {
+      const Vec3 u = vec3(ctx, f["uniform"], "fibers.uniform");
+      if (u.norm() < 1e-12) ctx.fail(f["uniform"], "fibers.uniform", "must not be zero");
+      model.set_uniform_fiber(u.normalized());
+    }
+  }
+
+  // Fixed nodes.
+  if (top.has("fixed")) {
+    const YAML::Node fx = top["fixed"];
+    if (!fx.IsSequence()) ctx.fail(fx, "fixed", "expected a list of node selectors");
+    for (size_t i = 0; i < fx.size(); ++i)
+      model.fix_nodes(select_nodes(ctx, fx[i], "fixed[" + std::to_string(i) + "]", model.mesh));
+  }
+
+  // Loads.
+  if (top.has("loads")) {
+    Map l(ctx, top["loads"], "loads", {"gravity", "tractions", "point_forces"});
+    if (l.has("gravity")) model.loads.gravity_m_s2 = vec3(ctx, l["gravity"], "loads.gravity");
+    if (l.has("tractions")) {
+      const YAML::Node tr = l["tractions"];
+      if (!tr.IsSequence()) ctx.fail(tr, "loads.tractions", "expected a list");
+      for (size_t i = 0; i < tr.size(); ++i) {
+        const std::string path = "loads.tractions[" + std::to_string(i) + "]";
+        Map t(ctx, tr[i], path, {"on", "pressure", "force_per_area"});
+        if (!t.has("on")) ctx.fail(tr[i], path, "needs on: <node selector>");
+        std::vector<int> nodes = select_nodes(ctx, t["on"], t.sub("on"), model.mesh);
+        core::SurfaceLoad load;
+        for (const core::Tri& tri : model.mesh.boundary_triangles())
+          if (std::all_of(tri.begin(), tri.end(), [&](int n) { return std::binary_search(nodes.begin(), nodes.end(), n); }))
+            load.faces.push_back(tri);
+        if (load.faces.empty()) ctx.fail(t["on"], t.sub("on"), "selects no boundary face (all three nodes must match)");
+        if (t.has("pressure") == t.has("force_per_area")) ctx.fail(tr[i], path, "give exactly one of pressure, force_per_area");
+        if (t.has("pressure")) load.pressure_pa = number(ctx, t["pressure"], t.sub("pressure"));
+        if (t.has("force_per_area")) load.force_per_area_pa = vec3(ctx, t["force_per_area"], t.sub("force_per_area"));
+        model.loads.surface_loads.push_back(std::move(load));
+      }
+    }
+    if (l.has("point_forces")) {
+      const YAML::Node pf = l["point_forces"];
+      if (!pf.IsSequence()) ctx.fail(pf, "loads.point_forces", "expected a list");
+      for (size_t i = 0; i < pf.size(); ++i) {
+        const std::string path = "loads.point_forces[" + std::to_string(i) + "]";
+        Map p(ctx, pf[i], path, {"at", "force"});
+        if (!p.has("at") || !p.has("force")) ctx.fail(pf[i], path, "needs at and force");
+        const Vec3 at = vec3(ctx, p["at"], p.sub("at"));
+        int best = 0;
+        double bd = HUGE_VAL;
+        for (int n = 0; n < model.mesh.num_nodes(); ++n) {
+          const double d = (model.mesh.rest_positions().col(n) - at).squaredNorm();
+          if (d < bd) bd = d, best = n;
+        }
+        model.loads.point_forces.push_back({best, vec3(ctx, p["force"], p.sub("force"))});
+      }
+    }
+  }
+
+  // Solver.
+  core::SimulatorSettings st;
+  Mode mode = Mode::dynamic;
+  if (top.has("solver")) {
+    Map s(ctx, top["solver"], "solver",
+          {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
+           "max_energy_gain"});
+    if (s.has("mode")) mode = choice(ctx, s["mode"], "solver.mode", {"dynamic", "static"}) == "static" ? Mode::static_ : Mode::dynamic;
+    if (s.has("dt")) st.dt_s = number(ctx, s["dt"], "solver.dt", 0, 10, true);
+    if (s.has("method"))
+      st.solver.method = choice(ctx, s["method"], "solver.method", {"pcg", "direct"}) == "direct"
+                             ? core::LinearSolverKind::direct
+                             : core::LinearSolverKind::pcg;
+    if (s.has("tolerance")) st.solver.tolerance = number(ctx, s["tolerance"], "solver.tolerance", 0, 1, true);
+    if (s.has("max_iterations")) st.solver.max_iterations = integer(ctx, s["max_iterations"], "solver.max_iterations", 1, 1 << 30);
+    if (s.has("rotation"))
+      st.rotation = choice(ctx, s["rotation"], "solver.rotation", {"svd", "polar"}) == "svd" ? core::RotationMethod::svd
+                                                                                            : core::RotationMethod::polar;
+    if (s.has("preconditioner"))
+      st.solver.preconditioner = choice(ctx, s["preconditioner"], "solver.preconditioner", {"cholesky", "block_jacobi"}) ==
+                                         "cholesky"
+                                     ? core::PreconditionerKind::cholesky
+                                     : core::PreconditionerKind::block_jacobi;
+    if (s.has("warm_start")) {
+      const std::string w = choice(ctx, s["warm_start"], "solver.warm_start", {"true", "false"});
+      st.solver.warm_start = w == "true";
+    }
+    if (s.has("max_energy_gain")) {
+      const YAML::Node g = s["max_energy_gain"];
+      st.max_energy_gain = g.IsScalar() && (g.as<std::string>() == "inf" || g.as<std::string>() == ".inf")
+                               ? std::numeric_limits<double>::infinity()
+                               : number(ctx, g, "solver.max_energy_gain", 0, HUGE_VAL);
+    }
+  }
+
+  // Probes.
+  std::vector<Probe> probes;
+  if (top.has("probes")) {
+    const YAML::Node pr = top["probes"];
+    if (!pr.IsMap()) ctx.fail(pr, "probes", "expected a mapping name: [x, y, z]");
+    for (const auto& kv : pr) {
+      const std::string name = kv.first.as<std::string>();
+      Probe p{name, vec3(ctx, kv.second, "probes." + name)};
+      // The containing element (the least negative weight, within round-off of the hull).
+      double best = -HUGE_VAL;
+      for (int e = 0; e < model.mesh.num_elements(); ++e) {
+        const Eigen::Vector4d w = barycentric(model.mesh, e, p.point_m);
+        if (w.minCoeff() > best) best = w.minCoeff(), p.element = e, p.weights = w;
+      }
+      if (best < -1e-9) ctx.fail(kv.second, "probes." + name, "the point is outside the mesh");
+      probes.push_back(p);
+    }
+  }
+
+  try {
+    model.validate();
+    st.validate();
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(origin + ": " + e.what());
+  }
+  std::string name = top.has("name") ? text(ctx, top["name"], "name") : origin;
+  return Scene{std::move(name), std::move(model), st, mode, std::move(probes)};
+}
+
+core::Vec3 Probe::displacement(const core::TetMesh& mesh, const core::Positions& x) const {
+  Vec3 u = Vec3::Zero();
+  const core::Tet& t = mesh.tets()[static_cast<size_t>(element)];
+  for (int a = 0; a < 4; ++a) {
+    const int n = t[static_cast<size_t>(a)];
+    u += weights(a) * (x.col(n) - mesh.rest_positions().col(n));
+  }
+  return u;
+}
+
+Scene load_scene(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw SceneError(path + ": cannot open the scene file");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return parse_scene(ss.str(), path);
+}
+
+}  // namespace fiberfem::scene

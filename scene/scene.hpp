@@ -1,0 +1,51 @@
+#pragma once
+/// @file Scene files (YAML, docs/scenes.md) parsed into the engine's model and settings.
+/// Outside core/ (STYLE.md habit 1): core never sees a file.
+
+#include "core/model.hpp"
+#include "core/simulator.hpp"
+
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace fiberfem::scene {
+
+/// A bad scene: the message starts with "<origin>:<line>: <key path>: ".
+class SceneError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+/// A point whose displacement is reported, interpolated linearly in the element that
+/// contains it (located when the scene is parsed; a point outside the mesh is an error).
+struct Probe {
+  std::string name;
+  core::Vec3 point_m = core::Vec3::Zero();
+  int element = -1;                                        ///< Containing element.
+  Eigen::Vector4d weights = Eigen::Vector4d::Zero();       ///< Barycentric weights of its nodes.
+  /// Displacement of the probe for positions `x` (3 x N), metres.
+  core::Vec3 displacement(const core::TetMesh& mesh, const core::Positions& x) const;
+};
+
+enum class Mode { dynamic, static_ };
+
+/// Everything a scene file describes.
+struct Scene {
+  std::string name;
+  core::Model model;
+  core::SimulatorSettings settings;
+  Mode mode = Mode::dynamic;
+  std::vector<Probe> probes;
+};
+
+/// Parses YAML text. `origin` names the source in error messages (a file name).
+/// @throws SceneError naming the line and key path of the first problem, or what the
+/// engine's validation refused.
+Scene parse_scene(const std::string& yaml_text, const std::string& origin = "<scene>");
+
+/// Reads and parses a scene file. @throws SceneError (also for an unreadable file).
+Scene load_scene(const std::string& path);
+
+}  // namespace fiberfem::scene
