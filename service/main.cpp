@@ -3,7 +3,7 @@
 // and with beam theory.
 
 #include "core/builtin_scenes.hpp"
-#include "scene/scene.hpp"
+#include "io/scene.hpp"
 #include "core/simulator.hpp"
 #include "core/static_solver.hpp"
 
@@ -31,17 +31,17 @@ struct RunOptions {
 // Runs a scene file: dynamic to --until with a status line, or a static solve; prints the
 // probes' displacements.
 int run_scene(const RunOptions& o) {
-  const fiberfem::scene::Scene sc = fiberfem::scene::load_scene(o.scene_file);
+  const fiberfem::io::Scene sc = fiberfem::io::load_scene(o.scene_file);
   const core::Model& model = sc.model;
   std::printf("fiberfem: scene '%s': %d tets, %d nodes, %d regions, %s\n", sc.name.c_str(), model.mesh.num_elements(),
-              model.mesh.num_nodes(), model.mesh.num_regions(), sc.mode == fiberfem::scene::Mode::dynamic ? "dynamic" : "static");
+              model.mesh.num_nodes(), model.mesh.num_regions(), sc.mode == fiberfem::io::Mode::dynamic ? "dynamic" : "static");
   auto print_probes = [&](const core::Positions& x) {
     for (const auto& p : sc.probes) {
       const core::Vec3 u = p.displacement(model.mesh, x);
       std::printf("probe %s: displacement [%+.6e, %+.6e, %+.6e] m\n", p.name.c_str(), u.x(), u.y(), u.z());
     }
   };
-  if (sc.mode == fiberfem::scene::Mode::static_) {
+  if (sc.mode == fiberfem::io::Mode::static_) {
     core::Positions x;
     core::StaticSettings ss;
     ss.rotation = sc.settings.rotation;

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-namespace fiberfem::scene {
+namespace fiberfem::io {
 
 /// A bad scene: the message starts with "<origin>:<line>: <key path>: ".
 class SceneError : public std::invalid_argument {
@@ -48,4 +48,4 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin = "<sc
 /// Reads and parses a scene file. @throws SceneError (also for an unreadable file).
 Scene load_scene(const std::string& path);
 
-}  // namespace fiberfem::scene
+}  // namespace fiberfem::io

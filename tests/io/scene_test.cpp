@@ -2,14 +2,14 @@
 // (counts, loads and constants checked by hand), regions match first-wins by element
 // centroid, and every kind of bad input is refused with the line and key path.
 
-#include "scene/scene.hpp"
+#include "io/scene.hpp"
 #include "test_support.hpp"
 
 #include <cstdio>
 #include <fstream>
 #include <string>
 
-namespace sc = fiberfem::scene;
+namespace sc = fiberfem::io;
 namespace core = fiberfem::core;
 using core::Vec3;
 

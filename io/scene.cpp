@@ -1,4 +1,4 @@
-#include "scene/scene.hpp"
+#include "io/scene.hpp"
 
 #include "core/box_generator.hpp"
 
@@ -12,7 +12,7 @@
 #include <set>
 #include <sstream>
 
-namespace fiberfem::scene {
+namespace fiberfem::io {
 namespace {
 
 using core::Vec3;
@@ -454,4 +454,4 @@ Scene load_scene(const std::string& path) {
   return parse_scene(ss.str(), path);
 }
 
-}  // namespace fiberfem::scene
+}  // namespace fiberfem::io
