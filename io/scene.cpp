@@ -1,6 +1,7 @@
 #include "io/scene.hpp"
 
 #include "core/box_generator.hpp"
+#include "io/mesh_io.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -216,11 +217,21 @@ Eigen::Vector4d barycentric(const core::TetMesh& mesh, int e, const Vec3& p) {
   return {1 - l.sum(), l.x(), l.y(), l.z()};
 }
 
-core::TetMesh build_mesh(const Ctx& ctx, const Map& top) {
+core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base_dir) {
   if (!top.has("mesh")) ctx.fail(top.node(), "mesh", "missing (a generator or a file)");
   Map m(ctx, top["mesh"], "mesh", {"generator", "size", "cells", "origin", "file", "scale"});
-  if (m.has("file")) ctx.fail(m["file"], "mesh.file", "mesh files are not readable yet (issue 3); use generator: box");
-  if (!m.has("generator")) ctx.fail(top["mesh"], "mesh", "needs generator (box)");
+  if (m.has("file") == m.has("generator")) ctx.fail(top["mesh"], "mesh", "give exactly one of generator, file");
+  if (m.has("file")) {
+    std::string path = text(ctx, m["file"], "mesh.file");
+    if (!path.empty() && path[0] != '/' && !base_dir.empty()) path = base_dir + "/" + path;
+    const double scale = m.has("scale") ? number(ctx, m["scale"], "mesh.scale", 0, HUGE_VAL, true) : 1.0;
+    try {
+      return read_mesh(path, scale);
+    } catch (const std::invalid_argument& e) {
+      ctx.fail(m["file"], "mesh.file", e.what());
+    }
+  }
+  if (m.has("scale")) ctx.fail(m["scale"], "mesh.scale", "goes with mesh.file");
   const std::string gen = text(ctx, m["generator"], "mesh.generator");
   if (gen != "box")
     ctx.fail(m["generator"], "mesh.generator", "'" + gen + "' is not available yet (available: box)");
@@ -238,7 +249,7 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top) {
 
 }  // namespace
 
-Scene parse_scene(const std::string& yaml_text, const std::string& origin) {
+Scene parse_scene(const std::string& yaml_text, const std::string& origin, const std::string& base_dir) {
   const Ctx ctx{origin};
   YAML::Node root;
   try {
@@ -249,7 +260,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin) {
   const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes"});
 
   // Mesh, then the region of every element (first match wins).
-  core::TetMesh box_mesh = build_mesh(ctx, top);
+  core::TetMesh box_mesh = build_mesh(ctx, top, base_dir);
   if (!top.has("regions")) ctx.fail(root, "regions", "missing (at least one region with a material)");
   const YAML::Node regions = top["regions"];
   if (!regions.IsSequence() || regions.size() == 0) ctx.fail(regions, "regions", "expected a non-empty list");
@@ -451,7 +462,8 @@ Scene load_scene(const std::string& path) {
   if (!f) throw SceneError(path + ": cannot open the scene file");
   std::stringstream ss;
   ss << f.rdbuf();
-  return parse_scene(ss.str(), path);
+  const size_t slash = path.rfind('/');
+  return parse_scene(ss.str(), path, slash == std::string::npos ? "." : path.substr(0, slash));
 }
 
 }  // namespace fiberfem::io

@@ -40,10 +40,12 @@ struct Scene {
   std::vector<Probe> probes;
 };
 
-/// Parses YAML text. `origin` names the source in error messages (a file name).
+/// Parses YAML text. `origin` names the source in error messages (a file name);
+/// `base_dir` is where relative mesh file paths are looked up (empty: the working dir).
 /// @throws SceneError naming the line and key path of the first problem, or what the
 /// engine's validation refused.
-Scene parse_scene(const std::string& yaml_text, const std::string& origin = "<scene>");
+Scene parse_scene(const std::string& yaml_text, const std::string& origin = "<scene>",
+                  const std::string& base_dir = "");
 
 /// Reads and parses a scene file. @throws SceneError (also for an unreadable file).
 Scene load_scene(const std::string& path);

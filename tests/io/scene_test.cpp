@@ -2,7 +2,10 @@
 // (counts, loads and constants checked by hand), regions match first-wins by element
 // centroid, and every kind of bad input is refused with the line and key path.
 
+#include "io/mesh_io.hpp"
 #include "io/scene.hpp"
+
+#include "core/box_generator.hpp"
 #include "test_support.hpp"
 
 #include <cstdio>
@@ -193,4 +196,40 @@ TEST(Scene, LoadsFilesAndReportsUnreadableOnes) {
   } catch (const sc::SceneError& e) {
     EXPECT_NE(std::string(e.what()).find("cannot open"), std::string::npos) << e.what();
   }
+}
+
+// mesh.file: a gmsh file next to the scene (relative path), scaled from millimetres; its
+// region tags select materials.
+TEST(Scene, ReadsAMeshFileRelativeToTheScene) {
+  core::BoxSpec b;
+  b.size_m = {40, 10, 10};  // millimetres
+  b.cells = {4, 1, 1};
+  const core::TetMesh box = core::make_box(b);
+  std::vector<int> tags(static_cast<size_t>(box.num_elements()));
+  for (size_t e = 0; e < tags.size(); ++e) tags[e] = e < tags.size() / 2 ? 3 : 5;
+  core::TetMesh tagged(box.rest_positions(), box.tets(), tags);
+  for (const auto& [name, nodes] : box.node_sets()) tagged.set_node_set(name, nodes);
+  const std::string dir = ::testing::TempDir();
+  {
+    std::ofstream f(dir + "/fiberfem_scene_mesh.msh");
+    fiberfem::io::write_gmsh22(tagged, f);
+    std::ofstream s(dir + "/fiberfem_scene_mesh.yaml");
+    s << "mesh: {file: fiberfem_scene_mesh.msh, scale: 0.001}\n"
+         "regions:\n"
+         "  - {select: {tag: 3}, material: {E: 20.0e3, nu: 0.3, density: 1000}}\n"
+         "  - {select: {tag: 5}, material: {E: 80.0e3, nu: 0.3, density: 1000}}\n"
+         "fixed: [{node_set: xmin}]\n";
+  }
+  const sc::Scene s = sc::load_scene(dir + "/fiberfem_scene_mesh.yaml");
+  EXPECT_NEAR(s.model.mesh.total_volume(), 0.04 * 0.01 * 0.01, 1e-15);
+  for (size_t e = 0; e < tags.size(); ++e) EXPECT_EQ(s.model.mesh.regions()[e], tags[e] == 3 ? 0 : 1);
+  std::remove((dir + "/fiberfem_scene_mesh.msh").c_str());
+  try {
+    sc::load_scene(dir + "/fiberfem_scene_mesh.yaml");
+    ADD_FAILURE() << "expected an error for the missing mesh file";
+  } catch (const sc::SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("mesh.file"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cannot open"), std::string::npos) << e.what();
+  }
+  std::remove((dir + "/fiberfem_scene_mesh.yaml").c_str());
 }

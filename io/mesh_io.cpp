@@ -1,0 +1,220 @@
+#include "io/mesh_io.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <istream>
+#include <map>
+#include <ostream>
+#include <set>
+#include <sstream>
+#include <vector>
+
+namespace fiberfem::io {
+namespace {
+
+// Line reader that knows where it is, for "<file>:<line>: " errors.
+class Lines {
+ public:
+  Lines(std::istream& in, std::string origin) : in_(in), origin_(std::move(origin)) {}
+  bool next(std::string& line) {
+    if (!std::getline(in_, line)) return false;
+    ++number_;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    return true;
+  }
+  std::string need(const std::string& what) {
+    std::string line;
+    if (!next(line)) fail("unexpected end of file, expected " + what);
+    return line;
+  }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw MeshFileError(origin_ + ":" + std::to_string(number_) + ": " + what);
+  }
+  const std::string& origin() const { return origin_; }
+
+ private:
+  std::istream& in_;
+  std::string origin_;
+  int number_ = 0;
+};
+
+// Parses all whitespace-separated fields of a line as numbers of type T.
+template <class T>
+std::vector<T> fields(Lines& lines, const std::string& line, const std::string& what) {
+  std::istringstream s(line);
+  std::vector<T> out;
+  std::string tok;
+  while (s >> tok) {
+    std::istringstream t(tok);
+    T v{};
+    if (!(t >> v) || !t.eof()) lines.fail("'" + tok + "' is not a valid " + what);
+    out.push_back(v);
+  }
+  return out;
+}
+
+long count_line(Lines& lines, const std::string& what) {
+  const std::vector<long> n = fields<long>(lines, lines.need(what), "count");
+  if (n.size() != 1 || n[0] < 0) lines.fail("expected one non-negative count of " + what);
+  return n[0];
+}
+
+void expect(Lines& lines, const std::string& tag) {
+  if (lines.need(tag) != tag) lines.fail("expected " + tag);
+}
+
+}  // namespace
+
+core::TetMesh read_gmsh22(std::istream& in, const std::string& origin, double scale) {
+  if (!(scale > 0 && std::isfinite(scale))) throw MeshFileError(origin + ": scale must be > 0");
+  Lines lines(in, origin);
+  std::map<long, int> index_of_id;  // node id -> index
+  std::vector<core::Vec3> points;
+  std::vector<core::Tet> tets;
+  std::vector<int> regions;
+  std::map<int, std::string> physical_names;                 // tag -> name (dim < 3)
+  std::map<int, std::set<int>> nodes_of_physical;            // tag -> nodes of lower-dim elements
+  bool have_format = false, have_nodes = false, have_elements = false;
+  std::string line;
+  while (lines.next(line)) {
+    if (line.empty()) continue;
+    if (line == "$MeshFormat") {
+      const std::vector<double> f = fields<double>(lines, lines.need("version line"), "number");
+      if (f.size() != 3) lines.fail("expected 'version file-type data-size'");
+      if (f[0] < 2.0 || f[0] >= 3.0)
+        lines.fail("MSH version " + std::to_string(f[0]) + " is not supported here (2.2 ASCII; save as 2.2)");
+      if (f[1] != 0) lines.fail("binary MSH files are not supported (save as ASCII)");
+      expect(lines, "$EndMeshFormat");
+      have_format = true;
+    } else if (line == "$PhysicalNames") {
+      const long n = count_line(lines, "physical names");
+      for (long i = 0; i < n; ++i) {
+        const std::string l = lines.need("a physical name");
+        std::istringstream s(l);
+        int dim = 0, tag = 0;
+        if (!(s >> dim >> tag)) lines.fail("expected 'dimension tag \"name\"'");
+        const size_t q0 = l.find('"'), q1 = l.rfind('"');
+        if (q0 == std::string::npos || q1 == q0) lines.fail("the physical name must be quoted");
+        if (dim < 3) physical_names[tag] = l.substr(q0 + 1, q1 - q0 - 1);
+      }
+      expect(lines, "$EndPhysicalNames");
+    } else if (line == "$Nodes") {
+      const long n = count_line(lines, "nodes");
+      points.reserve(static_cast<size_t>(n));
+      for (long i = 0; i < n; ++i) {
+        const std::vector<double> f = fields<double>(lines, lines.need("a node"), "number");
+        if (f.size() != 4) lines.fail("expected 'id x y z'");
+        const long id = static_cast<long>(f[0]);
+        if (static_cast<double>(id) != f[0] || id < 1) lines.fail("node id must be a positive integer");
+        if (!std::isfinite(f[1]) || !std::isfinite(f[2]) || !std::isfinite(f[3])) lines.fail("non-finite coordinate");
+        if (!index_of_id.emplace(id, static_cast<int>(points.size())).second)
+          lines.fail("node " + std::to_string(id) + " is given twice");
+        points.emplace_back(scale * f[1], scale * f[2], scale * f[3]);
+      }
+      expect(lines, "$EndNodes");
+      have_nodes = true;
+    } else if (line == "$Elements") {
+      if (!have_nodes) lines.fail("$Elements before $Nodes");
+      const long n = count_line(lines, "elements");
+      for (long i = 0; i < n; ++i) {
+        const std::vector<long> f = fields<long>(lines, lines.need("an element"), "integer");
+        if (f.size() < 3) lines.fail("expected 'id type ntags tags... nodes...'");
+        const long type = f[1], ntags = f[2];
+        static const std::map<long, int> kNodes = {{15, 1}, {1, 2}, {2, 3}, {4, 4}};
+        const auto it = kNodes.find(type);
+        if (ntags < 0 || static_cast<long>(f.size()) < 3 + ntags) lines.fail("bad tag count");
+        if (it == kNodes.end()) {
+          if (type == 11 || type == 5 || type == 3)
+            lines.fail("element type " + std::to_string(type) + " is not a linear tetrahedron (use first-order meshes)");
+          continue;  // other lower-dimensional types are ignored
+        }
+        if (static_cast<long>(f.size()) != 3 + ntags + it->second)
+          lines.fail("element type " + std::to_string(type) + " needs " + std::to_string(it->second) + " nodes");
+        const int physical = ntags > 0 ? static_cast<int>(f[3]) : 0;
+        std::vector<int> nodes;
+        for (int k = 0; k < it->second; ++k) {
+          const long id = f[static_cast<size_t>(3 + ntags + k)];
+          const auto found = index_of_id.find(id);
+          if (found == index_of_id.end()) lines.fail("element refers to node " + std::to_string(id) + ", which is not in $Nodes");
+          nodes.push_back(found->second);
+        }
+        if (type == 4) {
+          if (physical < 0) lines.fail("negative physical tag");
+          tets.push_back({nodes[0], nodes[1], nodes[2], nodes[3]});
+          regions.push_back(physical);
+        } else if (ntags > 0) {
+          nodes_of_physical[physical].insert(nodes.begin(), nodes.end());
+        }
+      }
+      expect(lines, "$EndElements");
+      have_elements = true;
+    } else if (line[0] == '$') {
+      // Unknown section ($NodeData, $Periodic, ...): skip to its end.
+      const std::string end = "$End" + line.substr(1);
+      std::string l;
+      while (true) {
+        if (!lines.next(l)) lines.fail("unexpected end of file inside " + line);
+        if (l == end) break;
+      }
+    } else {
+      lines.fail("expected a section start ($...), got '" + line.substr(0, 40) + "'");
+    }
+  }
+  if (!have_format) throw MeshFileError(origin + ": no $MeshFormat section (not a gmsh file?)");
+  if (!have_elements || tets.empty()) throw MeshFileError(origin + ": no linear tetrahedra (type 4) in the file");
+  core::Positions X(3, static_cast<Eigen::Index>(points.size()));
+  for (size_t i = 0; i < points.size(); ++i) X.col(static_cast<Eigen::Index>(i)) = points[i];
+  try {
+    core::TetMesh mesh(std::move(X), std::move(tets), std::move(regions));
+    for (const auto& [tag, nodes] : nodes_of_physical) {
+      const auto nm = physical_names.find(tag);
+      mesh.set_node_set(nm != physical_names.end() ? nm->second : "physical " + std::to_string(tag),
+                        std::vector<int>(nodes.begin(), nodes.end()));
+    }
+    return mesh;
+  } catch (const std::invalid_argument& e) {
+    throw MeshFileError(origin + ": " + e.what());
+  }
+}
+
+core::TetMesh read_mesh(const std::string& path, double scale) {
+  const size_t dot = path.rfind('.');
+  const std::string ext = dot == std::string::npos ? "" : path.substr(dot);
+  if (ext != ".msh") throw MeshFileError(path + ": unknown mesh format '" + ext + "' (supported: .msh)");
+  std::ifstream f(path);
+  if (!f) throw MeshFileError(path + ": cannot open the mesh file");
+  return read_gmsh22(f, path, scale);
+}
+
+void write_gmsh22(const core::TetMesh& mesh, std::ostream& out) {
+  out.precision(17);
+  out << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n";
+  int tag = 0;
+  for (int r : mesh.regions()) tag = std::max(tag, r);
+  std::vector<std::pair<int, std::string>> sets;
+  for (const auto& kv : mesh.node_sets()) sets.emplace_back(++tag, kv.first);
+  if (!sets.empty()) {
+    out << "$PhysicalNames\n" << sets.size() << "\n";
+    for (const auto& [t, name] : sets) out << "0 " << t << " \"" << name << "\"\n";
+    out << "$EndPhysicalNames\n";
+  }
+  const auto& X = mesh.rest_positions();
+  out << "$Nodes\n" << mesh.num_nodes() << "\n";
+  for (int i = 0; i < mesh.num_nodes(); ++i) out << i + 1 << " " << X(0, i) << " " << X(1, i) << " " << X(2, i) << "\n";
+  out << "$EndNodes\n";
+  size_t points = 0;
+  for (const auto& kv : mesh.node_sets()) points += kv.second.size();
+  out << "$Elements\n" << static_cast<size_t>(mesh.num_elements()) + points << "\n";
+  long id = 1;
+  for (size_t s = 0; s < sets.size(); ++s)
+    for (int n : mesh.node_set(sets[s].second)) out << id++ << " 15 2 " << sets[s].first << " " << sets[s].first << " " << n + 1 << "\n";
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    const core::Tet& t = mesh.tets()[static_cast<size_t>(e)];
+    const int r = mesh.regions()[static_cast<size_t>(e)];
+    out << id++ << " 4 2 " << r << " " << r << " " << t[0] + 1 << " " << t[1] + 1 << " " << t[2] + 1 << " " << t[3] + 1 << "\n";
+  }
+  out << "$EndElements\n";
+}
+
+}  // namespace fiberfem::io

@@ -1,0 +1,33 @@
+#pragma once
+/// @file Mesh files (docs/mesh-formats.md). Today: gmsh MSH 2.2 ASCII, read and written.
+/// Linear tetrahedra become elements (their physical tag the region tag); named physical
+/// groups of points, lines and triangles become node sets.
+
+#include "core/mesh.hpp"
+
+#include <iosfwd>
+#include <stdexcept>
+#include <string>
+
+namespace fiberfem::io {
+
+/// A malformed mesh file: the message starts with "<file>:<line>: ".
+class MeshFileError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+/// Reads a mesh file, choosing the format by extension (.msh). Positions are multiplied
+/// by `scale` (file units to metres, > 0). @throws MeshFileError naming file and line,
+/// or what TetMesh refuses (degenerate element, ...) with the file name.
+core::TetMesh read_mesh(const std::string& path, double scale = 1.0);
+
+/// Reads gmsh MSH 2.2 ASCII from a stream; `origin` names it in errors.
+core::TetMesh read_gmsh22(std::istream& in, const std::string& origin, double scale = 1.0);
+
+/// Writes gmsh MSH 2.2 ASCII: nodes, tetrahedra with their region id as physical tag (as
+/// read back), and each node set as a named physical group of points (tags after the
+/// largest region id).
+void write_gmsh22(const core::TetMesh& mesh, std::ostream& out);
+
+}  // namespace fiberfem::io

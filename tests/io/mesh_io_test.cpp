@@ -1,0 +1,127 @@
+// gmsh MSH 2.2 ASCII: a hand-written file read into exactly the mesh it describes,
+// write/read round trips, and malformed files refused with the file and line.
+
+#include "io/mesh_io.hpp"
+
+#include "core/box_generator.hpp"
+#include "test_support.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+namespace fio = fiberfem::io;
+namespace core = fiberfem::core;
+using core::Vec3;
+
+namespace {
+
+// Two tetrahedra sharing the face (2, 3, 4) of a unit-ish bipyramid, in millimetres, with
+// non-contiguous node ids, a named physical surface group and a line element to ignore.
+const char* kTwoTets = R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$PhysicalNames
+2
+2 7 "base"
+3 9 "tissue"
+$EndPhysicalNames
+$Nodes
+5
+10 0 0 -1
+20 1 0 0
+30 0 1 0
+40 -1 -1 0
+50 0 0 1
+$EndNodes
+$Elements
+4
+1 1 2 0 1 20 30
+2 2 2 7 1 20 30 40
+3 4 2 9 1 10 20 40 30
+4 4 2 9 1 50 40 30 20
+$EndElements
+)";
+
+core::TetMesh read(const std::string& text, double scale = 1.0) {
+  std::istringstream in(text);
+  return fio::read_gmsh22(in, "test.msh", scale);
+}
+
+void expect_error(const std::string& text, std::initializer_list<std::string> fragments) {
+  try {
+    read(text);
+    ADD_FAILURE() << "expected a MeshFileError for:\n" << text;
+  } catch (const fio::MeshFileError& e) {
+    const std::string msg = e.what();
+    for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << msg << "' lacks '" << f << "'";
+  }
+}
+
+std::string replace(std::string s, const std::string& from, const std::string& to) {
+  const size_t at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) s.replace(at, from.size(), to);
+  return s;
+}
+
+}  // namespace
+
+TEST(Gmsh22, HandWrittenFileGivesTheMeshItDescribes) {
+  const core::TetMesh m = read(kTwoTets, 1e-3);
+  ASSERT_EQ(m.num_nodes(), 5);
+  ASSERT_EQ(m.num_elements(), 2);
+  // Node 40 (index 3) at (-1, -1, 0) mm.
+  EXPECT_LT((m.rest_positions().col(3) - Vec3(-1e-3, -1e-3, 0)).norm(), 1e-18);
+  // Volumes by hand: base triangle (1,0,0), (0,1,0), (-1,-1,0) has area 1.5 mm^2; apexes at
+  // z = -1 and +1 mm: each tet 1.5 * 1 / 3 = 0.5 mm^3.
+  EXPECT_NEAR(m.total_volume(), 1e-9, 1e-21);
+  EXPECT_EQ(m.regions()[0], 9);
+  EXPECT_EQ(m.reoriented_elements(), std::vector<int>{0});  // given with negative volume
+  ASSERT_EQ(m.node_sets().count("base"), 1u);
+  EXPECT_EQ(m.node_set("base"), (std::vector<int>{1, 2, 3}));
+}
+
+TEST(Gmsh22, WriteThenReadIsTheSameMesh) {
+  core::BoxSpec b;
+  b.size_m = {0.03, 0.01, 0.02};
+  b.cells = {3, 2, 2};
+  core::TetMesh box = core::make_box(b);
+  std::vector<int> regions(static_cast<size_t>(box.num_elements()));
+  for (size_t e = 0; e < regions.size(); ++e) regions[e] = static_cast<int>(e % 3);
+  core::TetMesh m(box.rest_positions(), box.tets(), regions);
+  for (const auto& [name, nodes] : box.node_sets()) m.set_node_set(name, nodes);
+  std::stringstream s;
+  fio::write_gmsh22(m, s);
+  const core::TetMesh r = fio::read_gmsh22(s, "roundtrip.msh");
+  EXPECT_EQ(r.rest_positions(), m.rest_positions());  // 17 digits: exact
+  EXPECT_EQ(r.tets(), m.tets());
+  EXPECT_EQ(r.regions(), m.regions());
+  EXPECT_EQ(r.node_sets(), m.node_sets());
+  // Through a file, by extension.
+  const std::string path = ::testing::TempDir() + "/fiberfem_mesh_io_test.msh";
+  {
+    std::ofstream f(path);
+    fio::write_gmsh22(m, f);
+  }
+  EXPECT_EQ(fio::read_mesh(path, 2.0).rest_positions(), 2.0 * m.rest_positions());
+  std::remove(path.c_str());
+}
+
+TEST(Gmsh22, MalformedFilesNameTheFileAndLine) {
+  const std::string ok = kTwoTets;
+  expect_error(replace(ok, "2.2 0 8", "4.1 0 8"), {"test.msh:2:", "not supported"});
+  expect_error(replace(ok, "2.2 0 8", "2.2 1 8"), {"test.msh:2:", "binary"});
+  expect_error(replace(ok, "20 1 0 0", "20 1 zero 0"), {"test.msh:12:", "'zero'"});
+  expect_error(replace(ok, "30 0 1 0", "20 0 1 0"), {"test.msh:13:", "given twice"});
+  expect_error(replace(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 9 1 50 40 30 99"), {"test.msh:22:", "node 99"});
+  expect_error(replace(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 9 1 50 40 30"), {"test.msh:22:", "needs 4 nodes"});
+  expect_error(replace(ok, "3 4 2 9 1 10 20 40 30", "3 11 2 9 1 10 20 40 30 1 2 3 4 5 6"), {"not a linear tetrahedron"});
+  expect_error(replace(ok, "$EndNodes", "$EndNodez"), {"test.msh:16:", "$EndNodes"});
+  expect_error(ok.substr(0, ok.find("$Elements") + 12), {"unexpected end of file"});
+  expect_error(replace(ok, "50 0 0 1", "50 0 0 0"), {"test.msh", "degenerate"});  // flat second tet
+  expect_error("hello\n", {"test.msh:1:", "section"});
+  expect_error("", {"no $MeshFormat"});
+  EXPECT_THROW(fio::read_mesh("/nonexistent/x.msh"), fio::MeshFileError);
+  EXPECT_THROW(fio::read_mesh("mesh.stl"), fio::MeshFileError);
+}
