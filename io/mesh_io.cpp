@@ -66,7 +66,7 @@ void expect(Lines& lines, const std::string& tag) {
 
 }  // namespace
 
-core::TetMesh read_gmsh22(std::istream& in, const std::string& origin, double scale) {
+core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scale) {
   if (!(scale > 0 && std::isfinite(scale))) throw MeshFileError(origin + ": scale must be > 0");
   Lines lines(in, origin);
   std::map<long, int> index_of_id;  // node id -> index
@@ -76,14 +76,18 @@ core::TetMesh read_gmsh22(std::istream& in, const std::string& origin, double sc
   std::map<int, std::string> physical_names;                 // tag -> name (dim < 3)
   std::map<int, std::set<int>> nodes_of_physical;            // tag -> nodes of lower-dim elements
   bool have_format = false, have_nodes = false, have_elements = false;
+  int major = 0;
+  // MSH 4.1: physical tags hang on entities, (dim, entity tag) -> physical tags.
+  std::map<std::pair<int, int>, std::vector<int>> entity_physicals;
   std::string line;
   while (lines.next(line)) {
     if (line.empty()) continue;
     if (line == "$MeshFormat") {
       const std::vector<double> f = fields<double>(lines, lines.need("version line"), "number");
       if (f.size() != 3) lines.fail("expected 'version file-type data-size'");
-      if (f[0] < 2.0 || f[0] >= 3.0)
-        lines.fail("MSH version " + std::to_string(f[0]) + " is not supported here (2.2 ASCII; save as 2.2)");
+      if (!((f[0] >= 2.0 && f[0] < 3.0) || std::abs(f[0] - 4.1) < 1e-9))
+        lines.fail("MSH version " + std::to_string(f[0]) + " is not supported (2.2 or 4.1 ASCII)");
+      major = static_cast<int>(f[0]);
       if (f[1] != 0) lines.fail("binary MSH files are not supported (save as ASCII)");
       expect(lines, "$EndMeshFormat");
       have_format = true;
@@ -99,7 +103,85 @@ core::TetMesh read_gmsh22(std::istream& in, const std::string& origin, double sc
         if (dim < 3) physical_names[tag] = l.substr(q0 + 1, q1 - q0 - 1);
       }
       expect(lines, "$EndPhysicalNames");
+    } else if (line == "$Entities" && major == 4) {
+      const std::vector<long> n = fields<long>(lines, lines.need("entity counts"), "integer");
+      if (n.size() != 4) lines.fail("expected 'numPoints numCurves numSurfaces numVolumes'");
+      for (int dim = 0; dim < 4; ++dim)
+        for (long i = 0; i < n[static_cast<size_t>(dim)]; ++i) {
+          const std::vector<double> f = fields<double>(lines, lines.need("an entity"), "number");
+          // point: tag x y z nphys phys...; others: tag 6 bounds nphys phys... nbound bound...
+          const size_t at = dim == 0 ? 4 : 7;
+          if (f.size() < at + 1) lines.fail("entity line too short");
+          const long nphys = static_cast<long>(f[at]);
+          if (nphys < 0 || f.size() < at + 1 + static_cast<size_t>(nphys)) lines.fail("bad physical tag count");
+          std::vector<int>& ph = entity_physicals[{dim, static_cast<int>(f[0])}];
+          for (long k = 0; k < nphys; ++k) ph.push_back(static_cast<int>(f[at + 1 + static_cast<size_t>(k)]));
+        }
+      expect(lines, "$EndEntities");
+    } else if (line == "$Nodes" && major == 4) {
+      const std::vector<long> h = fields<long>(lines, lines.need("node header"), "integer");
+      if (h.size() != 4) lines.fail("expected 'numEntityBlocks numNodes minNodeTag maxNodeTag'");
+      for (long b = 0; b < h[0]; ++b) {
+        const std::vector<long> bh = fields<long>(lines, lines.need("a node block header"), "integer");
+        if (bh.size() != 4) lines.fail("expected 'entityDim entityTag parametric numNodesInBlock'");
+        const long count = bh[3];
+        std::vector<long> ids;
+        for (long i = 0; i < count; ++i) {
+          const std::vector<long> id = fields<long>(lines, lines.need("a node tag"), "integer");
+          if (id.size() != 1 || id[0] < 1) lines.fail("expected one positive node tag");
+          ids.push_back(id[0]);
+        }
+        for (long i = 0; i < count; ++i) {
+          const std::vector<double> f = fields<double>(lines, lines.need("node coordinates"), "number");
+          if (f.size() < 3) lines.fail("expected 'x y z'");
+          if (!std::isfinite(f[0]) || !std::isfinite(f[1]) || !std::isfinite(f[2])) lines.fail("non-finite coordinate");
+          if (!index_of_id.emplace(ids[static_cast<size_t>(i)], static_cast<int>(points.size())).second)
+            lines.fail("node " + std::to_string(ids[static_cast<size_t>(i)]) + " is given twice");
+          points.emplace_back(scale * f[0], scale * f[1], scale * f[2]);
+        }
+      }
+      if (static_cast<long>(points.size()) != h[1]) lines.fail("the blocks hold " + std::to_string(points.size()) + " nodes, the header says " + std::to_string(h[1]));
+      expect(lines, "$EndNodes");
+      have_nodes = true;
+    } else if (line == "$Elements" && major == 4) {
+      if (!have_nodes) lines.fail("$Elements before $Nodes");
+      const std::vector<long> h = fields<long>(lines, lines.need("element header"), "integer");
+      if (h.size() != 4) lines.fail("expected 'numEntityBlocks numElements minElementTag maxElementTag'");
+      for (long b = 0; b < h[0]; ++b) {
+        const std::vector<long> bh = fields<long>(lines, lines.need("an element block header"), "integer");
+        if (bh.size() != 4) lines.fail("expected 'entityDim entityTag elementType numElementsInBlock'");
+        const int dim = static_cast<int>(bh[0]), etag = static_cast<int>(bh[1]);
+        const long type = bh[2];
+        static const std::map<long, int> kNodes4 = {{15, 1}, {1, 2}, {2, 3}, {4, 4}};
+        const auto it = kNodes4.find(type);
+        if (it == kNodes4.end() && (type == 11 || type == 5 || type == 3))
+          lines.fail("element type " + std::to_string(type) + " is not a linear tetrahedron (use first-order meshes)");
+        const auto ph = entity_physicals.find({dim, etag});
+        const int physical = ph != entity_physicals.end() && !ph->second.empty() ? ph->second.front() : 0;
+        for (long i = 0; i < bh[3]; ++i) {
+          const std::vector<long> f = fields<long>(lines, lines.need("an element"), "integer");
+          if (it == kNodes4.end()) continue;
+          if (static_cast<long>(f.size()) != 1 + it->second)
+            lines.fail("element type " + std::to_string(type) + " needs " + std::to_string(it->second) + " nodes");
+          std::vector<int> nodes;
+          for (int k = 0; k < it->second; ++k) {
+            const auto found = index_of_id.find(f[static_cast<size_t>(1 + k)]);
+            if (found == index_of_id.end())
+              lines.fail("element refers to node " + std::to_string(f[static_cast<size_t>(1 + k)]) + ", which is not in $Nodes");
+            nodes.push_back(found->second);
+          }
+          if (type == 4) {
+            tets.push_back({nodes[0], nodes[1], nodes[2], nodes[3]});
+            regions.push_back(physical);
+          } else if (ph != entity_physicals.end()) {
+            for (int t : ph->second) nodes_of_physical[t].insert(nodes.begin(), nodes.end());
+          }
+        }
+      }
+      expect(lines, "$EndElements");
+      have_elements = true;
     } else if (line == "$Nodes") {
+      if (major != 2) lines.fail("$Nodes before $MeshFormat");
       const long n = count_line(lines, "nodes");
       points.reserve(static_cast<size_t>(n));
       for (long i = 0; i < n; ++i) {
@@ -184,7 +266,7 @@ core::TetMesh read_mesh(const std::string& path, double scale) {
   if (ext != ".msh") throw MeshFileError(path + ": unknown mesh format '" + ext + "' (supported: .msh)");
   std::ifstream f(path);
   if (!f) throw MeshFileError(path + ": cannot open the mesh file");
-  return read_gmsh22(f, path, scale);
+  return read_gmsh(f, path, scale);
 }
 
 void write_gmsh22(const core::TetMesh& mesh, std::ostream& out) {

@@ -1,5 +1,5 @@
 #pragma once
-/// @file Mesh files (docs/mesh-formats.md). Today: gmsh MSH 2.2 ASCII, read and written.
+/// @file Mesh files (docs/mesh-formats.md). Today: gmsh MSH 2.2 and 4.1 ASCII read, 2.2 written.
 /// Linear tetrahedra become elements (their physical tag the region tag); named physical
 /// groups of points, lines and triangles become node sets.
 
@@ -22,8 +22,9 @@ class MeshFileError : public std::invalid_argument {
 /// or what TetMesh refuses (degenerate element, ...) with the file name.
 core::TetMesh read_mesh(const std::string& path, double scale = 1.0);
 
-/// Reads gmsh MSH 2.2 ASCII from a stream; `origin` names it in errors.
-core::TetMesh read_gmsh22(std::istream& in, const std::string& origin, double scale = 1.0);
+/// Reads gmsh MSH 2.2 or 4.1 ASCII from a stream (the version from $MeshFormat);
+/// `origin` names it in errors.
+core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scale = 1.0);
 
 /// Writes gmsh MSH 2.2 ASCII: nodes, tetrahedra with their region id as physical tag (as
 /// read back), and each node set as a named physical group of points (tags after the
