@@ -260,10 +260,84 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
   }
 }
 
+namespace {
+
+// Next non-empty, non-comment line of a TetGen file (comments start with '#').
+bool tetgen_line(Lines& lines, std::string& line) {
+  while (lines.next(line)) {
+    const size_t hash = line.find('#');
+    if (hash != std::string::npos) line.erase(hash);
+    if (line.find_first_not_of(" \t") != std::string::npos) return true;
+  }
+  return false;
+}
+
+std::vector<double> tetgen_fields(Lines& lines, const std::string& what) {
+  std::string line;
+  if (!tetgen_line(lines, line)) lines.fail("unexpected end of file, expected " + what);
+  return fields<double>(lines, line, "number");
+}
+
+}  // namespace
+
+core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, std::istream& ele,
+                          const std::string& ele_origin, double scale) {
+  if (!(scale > 0 && std::isfinite(scale))) throw MeshFileError(node_origin + ": scale must be > 0");
+  Lines nl(node, node_origin);
+  const std::vector<double> h = tetgen_fields(nl, "'<points> <dim> <attributes> <markers>'");
+  if (h.size() < 2 || h[1] != 3) nl.fail("expected '<points> 3 <attributes> <markers>' (three-dimensional)");
+  const long n = static_cast<long>(h[0]);
+  const long nattr = h.size() > 2 ? static_cast<long>(h[2]) : 0, nmark = h.size() > 3 ? static_cast<long>(h[3]) : 0;
+  std::map<long, int> index_of_id;
+  core::Positions X(3, n);
+  for (long i = 0; i < n; ++i) {
+    const std::vector<double> f = tetgen_fields(nl, "a point");
+    if (static_cast<long>(f.size()) != 4 + nattr + nmark) nl.fail("expected 'id x y z' plus attributes and marker");
+    if (!std::isfinite(f[1]) || !std::isfinite(f[2]) || !std::isfinite(f[3])) nl.fail("non-finite coordinate");
+    if (!index_of_id.emplace(static_cast<long>(f[0]), static_cast<int>(i)).second)
+      nl.fail("point " + std::to_string(static_cast<long>(f[0])) + " is given twice");
+    X.col(i) = scale * core::Vec3(f[1], f[2], f[3]);
+  }
+  Lines el(ele, ele_origin);
+  const std::vector<double> eh = tetgen_fields(el, "'<tetrahedra> <nodes per tet> <attributes>'");
+  if (eh.size() < 2 || eh[1] != 4) el.fail("expected '<tetrahedra> 4 <attributes>' (linear tetrahedra)");
+  const long ne = static_cast<long>(eh[0]), eattr = eh.size() > 2 ? static_cast<long>(eh[2]) : 0;
+  std::vector<core::Tet> tets;
+  std::vector<int> regions;
+  for (long i = 0; i < ne; ++i) {
+    const std::vector<double> f = tetgen_fields(el, "a tetrahedron");
+    if (static_cast<long>(f.size()) != 5 + eattr) el.fail("expected 'id n1 n2 n3 n4' plus attributes");
+    core::Tet t{};
+    for (int k = 0; k < 4; ++k) {
+      const auto it = index_of_id.find(static_cast<long>(f[static_cast<size_t>(1 + k)]));
+      if (it == index_of_id.end())
+        el.fail("tetrahedron refers to point " + std::to_string(static_cast<long>(f[static_cast<size_t>(1 + k)])) +
+                ", which is not in " + node_origin);
+      t[static_cast<size_t>(k)] = it->second;
+    }
+    tets.push_back(t);
+    const double attr = eattr > 0 ? f[5] : 0;
+    if (attr < 0 || attr != std::floor(attr)) el.fail("the region attribute must be a non-negative integer");
+    regions.push_back(static_cast<int>(attr));
+  }
+  try {
+    return core::TetMesh(std::move(X), std::move(tets), std::move(regions));
+  } catch (const std::invalid_argument& e) {
+    throw MeshFileError(ele_origin + ": " + e.what());
+  }
+}
+
 core::TetMesh read_mesh(const std::string& path, double scale) {
   const size_t dot = path.rfind('.');
   const std::string ext = dot == std::string::npos ? "" : path.substr(dot);
-  if (ext != ".msh") throw MeshFileError(path + ": unknown mesh format '" + ext + "' (supported: .msh)");
+  if (ext == ".node" || ext == ".ele") {
+    const std::string base = path.substr(0, dot);
+    std::ifstream node(base + ".node"), ele(base + ".ele");
+    if (!node) throw MeshFileError(base + ".node: cannot open the mesh file");
+    if (!ele) throw MeshFileError(base + ".ele: cannot open the mesh file");
+    return read_tetgen(node, base + ".node", ele, base + ".ele", scale);
+  }
+  if (ext != ".msh") throw MeshFileError(path + ": unknown mesh format '" + ext + "' (supported: .msh, .node/.ele)");
   std::ifstream f(path);
   if (!f) throw MeshFileError(path + ": cannot open the mesh file");
   return read_gmsh(f, path, scale);

@@ -190,3 +190,26 @@ $EndElements
   std::istringstream c(replace(v41, "2 5 10 50", "2 6 10 50"));
   EXPECT_THROW(fio::read_gmsh(c, "v41.msh"), fio::MeshFileError);
 }
+
+// TetGen: the two tetrahedra again (index base 0, comments, a boundary marker column, a
+// region attribute): the same mesh as the gmsh file; and errors name the right file.
+TEST(TetGen, SameMeshAsTheGmshFile) {
+  const std::string node = "# points\n5 3 0 1\n0 0 0 -1 1\n1 1 0 0 0\n2 0 1 0 0\n3 -1 -1 0 0\n4 0 0 1 1\n";
+  const std::string ele = "2 4 1\n0 0 1 3 2 9   # the first, negatively oriented\n1 4 3 2 1 9\n";
+  std::istringstream n(node), e(ele), g(kTwoTets);
+  const core::TetMesh t = fio::read_tetgen(n, "m.node", e, "m.ele", 1e-3);
+  const core::TetMesh m = fio::read_gmsh(g, "m.msh", 1e-3);
+  EXPECT_EQ(t.rest_positions(), m.rest_positions());
+  EXPECT_EQ(t.tets(), m.tets());
+  EXPECT_EQ(t.regions(), m.regions());
+  std::istringstream n2(node), e2(replace(ele, "1 4 3 2 1 9", "1 4 3 2 7 9"));
+  try {
+    fio::read_tetgen(n2, "m.node", e2, "m.ele");
+    ADD_FAILURE() << "expected an error";
+  } catch (const fio::MeshFileError& err) {
+    EXPECT_NE(std::string(err.what()).find("m.ele:3:"), std::string::npos) << err.what();
+    EXPECT_NE(std::string(err.what()).find("point 7"), std::string::npos) << err.what();
+  }
+  std::istringstream n3(replace(node, "1 1 0 0 0", "1 1 0 0")), e3(ele);
+  EXPECT_THROW(fio::read_tetgen(n3, "m.node", e3, "m.ele"), fio::MeshFileError);
+}
