@@ -175,10 +175,14 @@ TEST(LinearSolver, CholeskyPcgKeepsOneFactorPerMatrixKey) {
         ASSERT_TRUE(st.ok);
         factorizations += st.factorizations;
         iterations[keyed ? 0 : 1] += st.iterations;
-        if (keyed) EXPECT_LE(st.iterations, 2) << "each matrix has its own exact factor";
+        if (keyed) {
+          EXPECT_LE(st.iterations, 2) << "each matrix has its own exact factor";
+        }
         EXPECT_LT((x - dense_solve(A, S.b)).norm(), 1e-6 * x.norm());
       }
-    if (keyed) EXPECT_EQ(factorizations, 2);
+    if (keyed) {
+      EXPECT_EQ(factorizations, 2);
+    }
   }
   EXPECT_GT(iterations[1], 2 * iterations[0]) << "keyed " << iterations[0] << ", unkeyed " << iterations[1];
 }
