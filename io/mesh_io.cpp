@@ -327,6 +327,140 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
   }
 }
 
+namespace {
+
+// Whitespace-separated tokens with their line numbers (legacy VTK is free-format).
+class Tokens {
+ public:
+  Tokens(std::istream& in, std::string origin) : origin_(std::move(origin)) {
+    std::string line;
+    int n = 0;
+    while (std::getline(in, line)) {
+      ++n;
+      lines_.push_back(line);
+      if (n <= 2) continue;  // the version line and the title are free text
+      std::istringstream s(line);
+      std::string tok;
+      while (s >> tok) toks_.emplace_back(tok, n);
+    }
+  }
+  bool done() const { return pos_ >= toks_.size(); }
+  const std::string& peek() const { return toks_[pos_].first; }
+  std::string next(const std::string& what) {
+    if (done()) fail("unexpected end of file, expected " + what);
+    return toks_[pos_++].first;
+  }
+  template <class T>
+  T number(const std::string& what) {
+    const std::string tok = next(what);
+    std::istringstream t(tok);
+    T v{};
+    if (!(t >> v) || !t.eof()) fail("'" + tok + "' is not a valid " + what);
+    return v;
+  }
+  [[noreturn]] void fail(const std::string& what) const {
+    const int line = toks_.empty() ? 0 : toks_[std::min(pos_ == 0 ? 0 : pos_ - 1, toks_.size() - 1)].second;
+    throw MeshFileError(origin_ + ":" + std::to_string(line) + ": " + what);
+  }
+  const std::vector<std::string>& lines() const { return lines_; }
+
+ private:
+  std::string origin_;
+  std::vector<std::string> lines_;
+  std::vector<std::pair<std::string, int>> toks_;
+  size_t pos_ = 0;
+};
+
+}  // namespace
+
+core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale) {
+  if (!(scale > 0 && std::isfinite(scale))) throw MeshFileError(origin + ": scale must be > 0");
+  Tokens t(in, origin);
+  if (t.lines().empty() || t.lines()[0].rfind("# vtk DataFile", 0) != 0)
+    throw MeshFileError(origin + ":1: not a legacy VTK file (expected '# vtk DataFile Version ...')");
+  if (t.next("ASCII or BINARY") != "ASCII") t.fail("only ASCII legacy VTK files are supported");
+  if (t.next("DATASET") != "DATASET" || t.next("dataset type") != "UNSTRUCTURED_GRID")
+    t.fail("expected DATASET UNSTRUCTURED_GRID");
+  core::Positions X;
+  std::vector<std::vector<long>> cells;
+  std::vector<long> types;
+  std::vector<long> tags;
+  while (!t.done()) {
+    const std::string key = t.next("a keyword");
+    if (key == "POINTS") {
+      const long n = t.number<long>("point count");
+      t.next("data type");
+      if (n < 0) t.fail("negative point count");
+      X.resize(3, n);
+      for (long i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) {
+          const double v = t.number<double>("coordinate");
+          if (!std::isfinite(v)) t.fail("non-finite coordinate");
+          X(c, i) = scale * v;
+        }
+    } else if (key == "CELLS") {
+      const long n = t.number<long>("cell count");
+      t.number<long>("cell list size");
+      for (long i = 0; i < n; ++i) {
+        const long k = t.number<long>("cell size");
+        if (k < 1 || k > 64) t.fail("bad cell size " + std::to_string(k));
+        std::vector<long> c(static_cast<size_t>(k));
+        for (auto& v : c) {
+          v = t.number<long>("point index");
+          if (v < 0 || v >= X.cols()) t.fail("cell refers to point " + std::to_string(v) + ", out of range");
+        }
+        cells.push_back(std::move(c));
+      }
+    } else if (key == "CELL_TYPES") {
+      const long n = t.number<long>("cell type count");
+      if (n != static_cast<long>(cells.size())) t.fail("CELL_TYPES count differs from CELLS");
+      for (long i = 0; i < n; ++i) types.push_back(t.number<long>("cell type"));
+    } else if (key == "CELL_DATA") {
+      const long n = t.number<long>("cell data count");
+      if (n != static_cast<long>(cells.size())) t.fail("CELL_DATA count differs from CELLS");
+      // The first integer SCALARS array is the region tag; other arrays are skipped.
+      while (!t.done() && (t.peek() == "SCALARS" || t.peek() == "FIELD")) {
+        if (t.next("SCALARS") == "FIELD") t.fail("FIELD data is not supported; use SCALARS");
+        t.next("array name");
+        t.next("data type");
+        std::string tok = t.next("LOOKUP_TABLE or component count");
+        if (tok != "LOOKUP_TABLE") tok = t.next("LOOKUP_TABLE");
+        if (tok != "LOOKUP_TABLE") t.fail("expected LOOKUP_TABLE");
+        t.next("lookup table name");
+        std::vector<long> values;
+        for (long i = 0; i < n; ++i) {
+          const double v = t.number<double>("cell value");
+          values.push_back(static_cast<long>(v));
+          if (tags.empty() && (v < 0 || v != std::floor(v))) t.fail("the region tag must be a non-negative integer");
+        }
+        if (tags.empty()) tags = std::move(values);
+      }
+    } else if (key == "POINT_DATA") {
+      // Point arrays are not used: skip the rest of the file section by section.
+      while (!t.done() && t.peek() != "CELL_DATA") t.next("");
+    } else {
+      t.fail("unexpected keyword '" + key + "'");
+    }
+  }
+  if (types.size() != cells.size()) throw MeshFileError(origin + ": CELL_TYPES missing or incomplete");
+  std::vector<core::Tet> tets;
+  std::vector<int> regions;
+  for (size_t i = 0; i < cells.size(); ++i) {
+    if (types[i] == 24) throw MeshFileError(origin + ": cell " + std::to_string(i) + " is a quadratic tetrahedron (use first-order meshes)");
+    if (types[i] != 10) continue;
+    if (cells[i].size() != 4) throw MeshFileError(origin + ": cell " + std::to_string(i) + " of type 10 does not have 4 points");
+    tets.push_back({static_cast<int>(cells[i][0]), static_cast<int>(cells[i][1]), static_cast<int>(cells[i][2]),
+                    static_cast<int>(cells[i][3])});
+    regions.push_back(tags.empty() ? 0 : static_cast<int>(tags[i]));
+  }
+  if (tets.empty()) throw MeshFileError(origin + ": no tetrahedra (cell type 10)");
+  try {
+    return core::TetMesh(std::move(X), std::move(tets), std::move(regions));
+  } catch (const std::invalid_argument& e) {
+    throw MeshFileError(origin + ": " + e.what());
+  }
+}
+
 core::TetMesh read_mesh(const std::string& path, double scale) {
   const size_t dot = path.rfind('.');
   const std::string ext = dot == std::string::npos ? "" : path.substr(dot);
@@ -337,7 +471,12 @@ core::TetMesh read_mesh(const std::string& path, double scale) {
     if (!ele) throw MeshFileError(base + ".ele: cannot open the mesh file");
     return read_tetgen(node, base + ".node", ele, base + ".ele", scale);
   }
-  if (ext != ".msh") throw MeshFileError(path + ": unknown mesh format '" + ext + "' (supported: .msh, .node/.ele)");
+  if (ext == ".vtk") {
+    std::ifstream f(path);
+    if (!f) throw MeshFileError(path + ": cannot open the mesh file");
+    return read_vtk(f, path, scale);
+  }
+  if (ext != ".msh") throw MeshFileError(path + ": unknown mesh format '" + ext + "' (supported: .msh, .node/.ele, .vtk)");
   std::ifstream f(path);
   if (!f) throw MeshFileError(path + ": cannot open the mesh file");
   return read_gmsh(f, path, scale);

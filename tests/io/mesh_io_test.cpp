@@ -213,3 +213,48 @@ TEST(TetGen, SameMeshAsTheGmshFile) {
   std::istringstream n3(replace(node, "1 1 0 0 0", "1 1 0 0")), e3(ele);
   EXPECT_THROW(fio::read_tetgen(n3, "m.node", e3, "m.ele"), fio::MeshFileError);
 }
+
+// Legacy VTK: the two tetrahedra with a triangle cell to ignore and region tags in
+// CELL_DATA, points spread over lines as VTK allows: the same mesh as the gmsh file.
+TEST(Vtk, SameMeshAsTheGmshFile) {
+  const std::string vtk = R"(# vtk DataFile Version 2.0
+two tets
+ASCII
+DATASET UNSTRUCTURED_GRID
+POINTS 5 double
+0 0 -1 1 0 0
+0 1 0 -1 -1 0 0 0 1
+CELLS 3 14
+3 1 2 3
+4 0 1 3 2
+4 4 3 2 1
+CELL_TYPES 3
+5
+10
+10
+CELL_DATA 3
+SCALARS region int 1
+LOOKUP_TABLE default
+7 9 9
+)";
+  std::istringstream v(vtk), g(kTwoTets);
+  const core::TetMesh t = fio::read_vtk(v, "m.vtk", 1e-3);
+  const core::TetMesh m = fio::read_gmsh(g, "m.msh", 1e-3);
+  EXPECT_EQ(t.rest_positions(), m.rest_positions());
+  EXPECT_EQ(t.tets(), m.tets());
+  EXPECT_EQ(t.regions(), m.regions());
+  auto bad = [&](const std::string& from, const std::string& to, const std::string& fragment) {
+    std::istringstream in(replace(vtk, from, to));
+    try {
+      fio::read_vtk(in, "m.vtk");
+      ADD_FAILURE() << "expected an error for " << to;
+    } catch (const fio::MeshFileError& e) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
+  };
+  bad("4 4 3 2 1", "4 4 3 2 9", "m.vtk:11:");
+  bad("ASCII", "BINARY", "only ASCII");
+  bad("0 1 0 -1 -1 0 0 0 1", "0 1 0 -1 -1 0 0 0 x", "'x'");
+  bad("7 9 9", "7 9 -2", "non-negative");
+  bad("# vtk DataFile Version 2.0", "hello", "not a legacy VTK");
+}
