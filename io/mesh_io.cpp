@@ -157,7 +157,10 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
         if (it == kNodes4.end() && (type == 11 || type == 5 || type == 3))
           lines.fail("element type " + std::to_string(type) + " is not a linear tetrahedron (use first-order meshes)");
         const auto ph = entity_physicals.find({dim, etag});
-        const int physical = ph != entity_physicals.end() && !ph->second.empty() ? ph->second.front() : 0;
+        // Without an $Entities section (as meshio writes) the entity tag is the region tag.
+        const int physical = ph != entity_physicals.end() && !ph->second.empty() ? ph->second.front()
+                             : entity_physicals.empty()                            ? etag
+                                                                                   : 0;
         for (long i = 0; i < bh[3]; ++i) {
           const std::vector<long> f = fields<long>(lines, lines.need("an element"), "integer");
           if (it == kNodes4.end()) continue;
@@ -400,7 +403,29 @@ core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale
         }
     } else if (key == "CELLS") {
       const long n = t.number<long>("cell count");
-      t.number<long>("cell list size");
+      const long size = t.number<long>("cell list size");
+      if (!t.done() && t.peek() == "OFFSETS") {
+        // VTK 5.x: n offsets, then the connectivity (size entries).
+        t.next("OFFSETS");
+        t.next("data type");
+        std::vector<long> offsets;
+        for (long i = 0; i < n; ++i) offsets.push_back(t.number<long>("offset"));
+        if (t.next("CONNECTIVITY") != "CONNECTIVITY") t.fail("expected CONNECTIVITY");
+        t.next("data type");
+        std::vector<long> conn;
+        for (long i = 0; i < size; ++i) {
+          const long v = t.number<long>("point index");
+          if (v < 0 || v >= X.cols()) t.fail("cell refers to point " + std::to_string(v) + ", out of range");
+          conn.push_back(v);
+        }
+        for (long i = 0; i + 1 < n; ++i) {
+          if (offsets[static_cast<size_t>(i)] < 0 || offsets[static_cast<size_t>(i + 1)] < offsets[static_cast<size_t>(i)] ||
+              offsets[static_cast<size_t>(i + 1)] > size)
+            t.fail("bad OFFSETS");
+          cells.emplace_back(conn.begin() + offsets[static_cast<size_t>(i)], conn.begin() + offsets[static_cast<size_t>(i + 1)]);
+        }
+        continue;
+      }
       for (long i = 0; i < n; ++i) {
         const long k = t.number<long>("cell size");
         if (k < 1 || k > 64) t.fail("bad cell size " + std::to_string(k));
@@ -419,8 +444,29 @@ core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale
       const long n = t.number<long>("cell data count");
       if (n != static_cast<long>(cells.size())) t.fail("CELL_DATA count differs from CELLS");
       // The first integer SCALARS array is the region tag; other arrays are skipped.
-      while (!t.done() && (t.peek() == "SCALARS" || t.peek() == "FIELD")) {
-        if (t.next("SCALARS") == "FIELD") t.fail("FIELD data is not supported; use SCALARS");
+      if (!t.done() && t.peek() == "FIELD") {
+        // FIELD name count, then per array: name components tuples type values.
+        t.next("FIELD");
+        t.next("field name");
+        const long arrays = t.number<long>("array count");
+        for (long a = 0; a < arrays; ++a) {
+          t.next("array name");
+          const long comps = t.number<long>("component count");
+          const long tuples = t.number<long>("tuple count");
+          t.next("data type");
+          std::vector<long> values;
+          for (long i = 0; i < comps * tuples; ++i) {
+            const double v = t.number<double>("cell value");
+            values.push_back(static_cast<long>(v));
+            if (tags.empty() && comps == 1 && (v < 0 || v != std::floor(v)))
+              t.fail("the region tag must be a non-negative integer");
+          }
+          if (tags.empty() && comps == 1 && tuples == n) tags = std::move(values);
+        }
+        continue;
+      }
+      while (!t.done() && t.peek() == "SCALARS") {
+        t.next("SCALARS");
         t.next("array name");
         t.next("data type");
         std::string tok = t.next("LOOKUP_TABLE or component count");

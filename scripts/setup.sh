@@ -37,6 +37,15 @@ else
   echo "setup: Debian packages already installed"
 fi
 
+# Python packages (tests and tools) in a virtual environment beside the build.
+if ! .venv/bin/python -c "import meshio" 2>/dev/null; then
+  echo "setup: creating .venv with scripts/requirements.txt"
+  python3 -m venv .venv
+  .venv/bin/pip install -q -r scripts/requirements.txt
+else
+  echo "setup: .venv ready"
+fi
+
 preset="${FIBERFEM_PRESET:-release}"
 if [[ ! -f "build/$preset/build.ninja" ]]; then
   cmake --preset "$preset"
