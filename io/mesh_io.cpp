@@ -186,7 +186,7 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
     } else if (line == "$Nodes") {
       if (major != 2) lines.fail("$Nodes before $MeshFormat");
       const long n = count_line(lines, "nodes");
-      points.reserve(static_cast<size_t>(n));
+      points.reserve(static_cast<size_t>(std::min(n, 1L << 20)));  // a bad count must not allocate
       for (long i = 0; i < n; ++i) {
         const std::vector<double> f = fields<double>(lines, lines.need("a node"), "number");
         if (f.size() != 4) lines.fail("expected 'id x y z'");
@@ -291,20 +291,24 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
   if (h.size() < 2 || h[1] != 3) nl.fail("expected '<points> 3 <attributes> <markers>' (three-dimensional)");
   const long n = static_cast<long>(h[0]);
   const long nattr = h.size() > 2 ? static_cast<long>(h[2]) : 0, nmark = h.size() > 3 ? static_cast<long>(h[3]) : 0;
+  if (n < 0 || nattr < 0 || nmark < 0 || nmark > 1) nl.fail("bad header counts");
   std::map<long, int> index_of_id;
-  core::Positions X(3, n);
+  std::vector<core::Vec3> pts;
   for (long i = 0; i < n; ++i) {
     const std::vector<double> f = tetgen_fields(nl, "a point");
     if (static_cast<long>(f.size()) != 4 + nattr + nmark) nl.fail("expected 'id x y z' plus attributes and marker");
     if (!std::isfinite(f[1]) || !std::isfinite(f[2]) || !std::isfinite(f[3])) nl.fail("non-finite coordinate");
     if (!index_of_id.emplace(static_cast<long>(f[0]), static_cast<int>(i)).second)
       nl.fail("point " + std::to_string(static_cast<long>(f[0])) + " is given twice");
-    X.col(i) = scale * core::Vec3(f[1], f[2], f[3]);
+    pts.push_back(scale * core::Vec3(f[1], f[2], f[3]));
   }
+  core::Positions X(3, static_cast<Eigen::Index>(pts.size()));
+  for (size_t i = 0; i < pts.size(); ++i) X.col(static_cast<Eigen::Index>(i)) = pts[i];
   Lines el(ele, ele_origin);
   const std::vector<double> eh = tetgen_fields(el, "'<tetrahedra> <nodes per tet> <attributes>'");
   if (eh.size() < 2 || eh[1] != 4) el.fail("expected '<tetrahedra> 4 <attributes>' (linear tetrahedra)");
   const long ne = static_cast<long>(eh[0]), eattr = eh.size() > 2 ? static_cast<long>(eh[2]) : 0;
+  if (ne < 0 || eattr < 0) el.fail("bad header counts");
   std::vector<core::Tet> tets;
   std::vector<int> regions;
   for (long i = 0; i < ne; ++i) {
@@ -348,6 +352,7 @@ class Tokens {
     }
   }
   bool done() const { return pos_ >= toks_.size(); }
+  size_t remaining() const { return toks_.size() - pos_; }
   const std::string& peek() const { return toks_[pos_].first; }
   std::string next(const std::string& what) {
     if (done()) fail("unexpected end of file, expected " + what);
@@ -394,6 +399,7 @@ core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale
       const long n = t.number<long>("point count");
       t.next("data type");
       if (n < 0) t.fail("negative point count");
+      if (static_cast<size_t>(n) > t.remaining() / 3) t.fail("the point count is larger than the file holds");
       X.resize(3, n);
       for (long i = 0; i < n; ++i)
         for (int c = 0; c < 3; ++c) {
@@ -404,6 +410,8 @@ core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale
     } else if (key == "CELLS") {
       const long n = t.number<long>("cell count");
       const long size = t.number<long>("cell list size");
+      if (n < 0 || size < 0 || static_cast<size_t>(n) > t.remaining() || static_cast<size_t>(size) > t.remaining())
+        t.fail("the cell counts are larger than the file holds");
       if (!t.done() && t.peek() == "OFFSETS") {
         // VTK 5.x: n offsets, then the connectivity (size entries).
         t.next("OFFSETS");
