@@ -21,7 +21,11 @@ using core::Vec3;
 // Error helpers: every message is "<origin>:<line>: <key path>: <what>".
 struct Ctx {
   std::string origin;
+  std::vector<std::string> overridden;  // key paths set by --set (they have no file line)
   [[noreturn]] void fail(const YAML::Node& at, const std::string& path, const std::string& what) const {
+    for (const std::string& o : overridden)
+      if (path.compare(0, o.size(), o) == 0 && (path.size() == o.size() || path[o.size()] == '.' || path[o.size()] == '['))
+        throw SceneError(origin + ": --set " + path + ": " + what);
     const int line = at.IsDefined() && at.Mark().line >= 0 ? at.Mark().line + 1 : 0;
     throw SceneError(origin + ":" + std::to_string(line) + ": " + path + ": " + what);
   }
@@ -247,16 +251,80 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
   return core::make_box(spec);
 }
 
+// Applies "a.b[2].c=value" to the tree (YAML::Node handles are references into it).
+void apply_override(YAML::Node root, const std::string& assignment) {
+  const size_t eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw SceneError("--set " + assignment + ": expected key.path=value");
+  const std::string path = assignment.substr(0, eq);
+  YAML::Node value;
+  try {
+    value = YAML::Load(assignment.substr(eq + 1));
+  } catch (const YAML::Exception& e) {
+    throw SceneError("--set " + assignment + ": the value is not valid YAML: " + e.msg);
+  }
+  // Split into keys and [index] parts.
+  std::vector<std::pair<std::string, long>> parts;  // key or (empty, index)
+  size_t i = 0;
+  while (i < path.size()) {
+    if (path[i] == '.') {
+      ++i;
+      continue;
+    }
+    if (path[i] == '[') {
+      const size_t close = path.find(']', i);
+      if (close == std::string::npos) throw SceneError("--set " + assignment + ": unclosed [");
+      try {
+        parts.emplace_back("", std::stol(path.substr(i + 1, close - i - 1)));
+      } catch (const std::exception&) {
+        throw SceneError("--set " + assignment + ": bad list index");
+      }
+      i = close + 1;
+      continue;
+    }
+    const size_t end = path.find_first_of(".[", i);
+    parts.emplace_back(path.substr(i, end == std::string::npos ? std::string::npos : end - i), -1);
+    i = end == std::string::npos ? path.size() : end;
+  }
+  if (parts.empty()) throw SceneError("--set " + assignment + ": empty key path");
+  YAML::Node node = root;
+  for (size_t k = 0; k < parts.size(); ++k) {
+    const bool last = k + 1 == parts.size();
+    if (parts[k].first.empty()) {
+      const long idx = parts[k].second;
+      if (!node.IsSequence() || idx < 0 || idx >= static_cast<long>(node.size()))
+        throw SceneError("--set " + assignment + ": no list element [" + std::to_string(idx) + "] there");
+      if (last) {
+        node[static_cast<size_t>(idx)] = value;
+        return;
+      }
+      node.reset(node[static_cast<size_t>(idx)]);
+    } else {
+      if (!node.IsMap() && !node.IsNull())
+        throw SceneError("--set " + assignment + ": '" + parts[k].first + "' is not under a mapping");
+      if (last) {
+        node[parts[k].first] = value;
+        return;
+      }
+      YAML::Node child = node[parts[k].first];
+      node.reset(child);
+    }
+  }
+}
+
 }  // namespace
 
-Scene parse_scene(const std::string& yaml_text, const std::string& origin, const std::string& base_dir) {
-  const Ctx ctx{origin};
+Scene parse_scene(const std::string& yaml_text, const std::string& origin, const std::string& base_dir,
+                  const std::vector<std::string>& overrides) {
+  Ctx ctx{origin, {}};
+  for (const std::string& o : overrides) ctx.overridden.push_back(o.substr(0, o.find('=')));
   YAML::Node root;
   try {
     root = YAML::Load(yaml_text);
   } catch (const YAML::ParserException& e) {
     throw SceneError(origin + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
   }
+  for (const std::string& o : overrides) apply_override(root, o);
   const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes"});
 
   // Mesh, then the region of every element (first match wins).
@@ -457,13 +525,13 @@ core::Vec3 Probe::displacement(const core::TetMesh& mesh, const core::Positions&
   return u;
 }
 
-Scene load_scene(const std::string& path) {
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
   std::ifstream f(path);
   if (!f) throw SceneError(path + ": cannot open the scene file");
   std::stringstream ss;
   ss << f.rdbuf();
   const size_t slash = path.rfind('/');
-  return parse_scene(ss.str(), path, slash == std::string::npos ? "." : path.substr(0, slash));
+  return parse_scene(ss.str(), path, slash == std::string::npos ? "." : path.substr(0, slash), overrides);
 }
 
 }  // namespace fiberfem::io

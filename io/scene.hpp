@@ -44,10 +44,15 @@ struct Scene {
 /// `base_dir` is where relative mesh file paths are looked up (empty: the working dir).
 /// @throws SceneError naming the line and key path of the first problem, or what the
 /// engine's validation refused.
+/// `overrides` are "key.path=value" assignments applied to the YAML before parsing (for
+/// sweeps): a path names mapping keys and list indices (`regions[0].material.E_L=7e4`,
+/// `solver.dt=0.01`); the value is parsed as YAML (`loads.gravity=[0, 0, -1]`). Missing
+/// mapping keys are created; a bad path is a SceneError naming the override.
 Scene parse_scene(const std::string& yaml_text, const std::string& origin = "<scene>",
-                  const std::string& base_dir = "");
+                  const std::string& base_dir = "", const std::vector<std::string>& overrides = {});
 
-/// Reads and parses a scene file. @throws SceneError (also for an unreadable file).
-Scene load_scene(const std::string& path);
+/// Reads and parses a scene file (with optional overrides, as parse_scene).
+/// @throws SceneError (also for an unreadable file).
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
 
 }  // namespace fiberfem::io

@@ -23,6 +23,9 @@ namespace {
 
 struct RunOptions {
   std::string scene_file;
+  std::vector<std::string> overrides;  // --set key.path=value
+  bool force_static = false;           // --static
+  int steps = 0;                       // --steps (0: from --until)
   std::string builtin = "cantilever", solver = "pcg", preconditioner = "cholesky", rotation = "polar";
   double seconds = 2.0, dt = 1.0 / 60.0, tol = 1e-6, max_energy_gain = 1e-3;
   std::vector<int> cells{20, 2, 2};
@@ -31,7 +34,7 @@ struct RunOptions {
 // Runs a scene file: dynamic to --until with a status line, or a static solve; prints the
 // probes' displacements.
 int run_scene(const RunOptions& o) {
-  const fiberfem::io::Scene sc = fiberfem::io::load_scene(o.scene_file);
+  const fiberfem::io::Scene sc = fiberfem::io::load_scene(o.scene_file, o.overrides);
   const core::Model& model = sc.model;
   std::printf("fiberfem: scene '%s': %d tets, %d nodes, %d regions, %s\n", sc.name.c_str(), model.mesh.num_elements(),
               model.mesh.num_nodes(), model.mesh.num_regions(), sc.mode == fiberfem::io::Mode::dynamic ? "dynamic" : "static");
@@ -41,7 +44,7 @@ int run_scene(const RunOptions& o) {
       std::printf("probe %s: displacement [%+.6e, %+.6e, %+.6e] m\n", p.name.c_str(), u.x(), u.y(), u.z());
     }
   };
-  if (sc.mode == fiberfem::io::Mode::static_) {
+  if (sc.mode == fiberfem::io::Mode::static_ || o.force_static) {
     core::Positions x;
     core::StaticSettings ss;
     ss.rotation = sc.settings.rotation;
@@ -53,7 +56,7 @@ int run_scene(const RunOptions& o) {
   }
   core::Simulator sim(model, sc.settings);
   const bool tty = isatty(fileno(stdout));
-  const int steps = std::max(1, static_cast<int>(std::lround(o.seconds / sc.settings.dt_s)));
+  const int steps = o.steps > 0 ? o.steps : std::max(1, static_cast<int>(std::lround(o.seconds / sc.settings.dt_s)));
   int failed = 0;
   double work = 0;
   for (int s = 1; s <= steps; ++s) {
@@ -153,7 +156,11 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   auto* run = app.add_subcommand("run", "Run a scene in batch (no bus)");
   RunOptions o;
-  run->add_option("--scene", o.scene_file, "Scene file (YAML, docs/scenes.md); overrides --builtin");
+  run->add_option("scene", o.scene_file, "Scene file (YAML, docs/scenes.md); without one, --builtin runs");
+  run->add_option("--scene", o.scene_file, "Same as the positional scene file");
+  run->add_option("--set", o.overrides, "Override a scene key: key.path=value (repeatable)");
+  run->add_flag("--static", o.force_static, "Static solve instead of time stepping (scene files)");
+  run->add_option("--steps", o.steps, "Number of steps (instead of --until; scene files)")->check(CLI::PositiveNumber);
   run->add_option("--builtin", o.builtin, "Built-in scene: cantilever")->capture_default_str();
   run->add_option("--until", o.seconds, "Simulated time, s")->capture_default_str()->check(CLI::PositiveNumber);
   run->add_option("--dt", o.dt, "Time step, s")->capture_default_str()->check(CLI::Range(1e-6, 10.0));

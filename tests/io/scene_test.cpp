@@ -8,6 +8,7 @@
 #include "core/box_generator.hpp"
 #include "test_support.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -232,4 +233,31 @@ TEST(Scene, ReadsAMeshFileRelativeToTheScene) {
     EXPECT_NE(std::string(e.what()).find("cannot open"), std::string::npos) << e.what();
   }
   std::remove((dir + "/fiberfem_scene_mesh.yaml").c_str());
+}
+
+// --set overrides: keys, list indices and YAML values; bad paths are named.
+TEST(Scene, OverridesSetKeysBeforeParsing) {
+  const sc::Scene s = sc::parse_scene(kExample, "ex.yaml", "",
+                                      {"solver.dt=0.01", "regions[0].material.E_L=70.0e3", "loads.gravity=[0, 0, -1]",
+                                       "solver.max_energy_gain=inf", "name=sweep-1"});
+  EXPECT_DOUBLE_EQ(s.settings.dt_s, 0.01);
+  EXPECT_NEAR(1.0 / s.model.region_materials[0].compliance()(2, 2), 70e3, 1e-6);
+  EXPECT_EQ(s.model.loads.gravity_m_s2, Vec3(0, 0, -1));
+  EXPECT_TRUE(std::isinf(s.settings.max_energy_gain));
+  EXPECT_EQ(s.name, "sweep-1");
+  // A value that fails validation is reported at its key path like any other.
+  try {
+    sc::parse_scene(kExample, "ex.yaml", "", {"solver.dt=-1"});
+    ADD_FAILURE();
+  } catch (const sc::SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("ex.yaml: --set solver.dt: must be in"), std::string::npos) << e.what();
+  }
+  for (const char* bad : {"solver.dt", "regions[3].material.E_L=1", "regions[x]=1", "name.sub=1"}) {
+    try {
+      sc::parse_scene(kExample, "ex.yaml", "", {bad});
+      ADD_FAILURE() << bad;
+    } catch (const sc::SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("--set"), std::string::npos) << bad << ": " << e.what();
+    }
+  }
 }
