@@ -181,11 +181,7 @@ double Simulator::update_rotations(bool with_energy) {
       R_[i] = rotation_svd(F);
     }
     if (with_energy) {
-      const Mat3& R = R_[i];
-      const Vec12& X = caches_.X[i];
-      Vec12 u;
-      u.segment<3>(0).setZero();
-      for (int a = 1; a < 4; ++a) u.segment<3>(3 * a) = R.transpose() * Ds.col(a - 1) - (X.segment<3>(3 * a) - X.segment<3>(0));
+      const Vec12 u = corotated_displacement(R_[i], gather(positions(), t), caches_.X[i]);
       energy += 0.5 * u.dot(caches_.K[i] * u);
     }
   }
@@ -227,14 +223,7 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
         const Mat3& R = R_[i];
         const Mat12& K = caches_.K[i];
         const Tet& t = model_.mesh.tets()[i];
-        // u relative to node 0 (a rigid translation K^e does not see) keeps round-off small
-        // far from the origin, as corotated_displacement does.
-        Vec12 u;
-        const Vec3 x0 = x_.segment<3>(3 * t[0]);
-        const Vec3 X0 = caches_.X[i].segment<3>(0);
-        for (int a = 0; a < 4; ++a)
-          u.segment<3>(3 * a) = R.transpose() * (x_.segment<3>(3 * t[static_cast<size_t>(a)]) - x0) -
-                                (caches_.X[i].segment<3>(3 * a) - X0);
+        const Vec12 u = corotated_displacement(R, gather(positions(), t), caches_.X[i]);
         const Vec12 Ku = K * u;
         acc[static_cast<size_t>(omp_get_thread_num())].energy += 0.5 * u.dot(Ku);
         Vec12 floc = -Ku;

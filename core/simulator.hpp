@@ -87,7 +87,6 @@ class Simulator {
   // One cache line per thread for reductions inside the coloured loops.
   struct alignas(64) ThreadAcc {
     double energy = 0;
-    int inverted = 0;
   };
 
  public:

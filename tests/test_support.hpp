@@ -40,6 +40,15 @@ inline core::Mat6 engineering_compliance(const core::EngineeringConstants& c) {
   return S;
 }
 
+/// `s` with the first occurrence of `from` replaced by `to` (for mutating test inputs);
+/// a missing `from` fails the test that asked.
+inline std::string replace_once(std::string s, const std::string& from, const std::string& to) {
+  const size_t at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) s.replace(at, from.size(), to);
+  return s;
+}
+
 /// A random rotation from a seeded generator.
 inline core::Mat3 random_rotation(std::mt19937& rng) {
   std::normal_distribution<double> n(0.0, 1.0);

@@ -19,6 +19,8 @@ using core::Vec3;
 
 namespace {
 
+using fiberfem::testing::replace_once;
+
 // Two tetrahedra sharing the face (2, 3, 4) of a unit-ish bipyramid, in millimetres, with
 // non-contiguous node ids, a named physical surface group and a line element to ignore.
 const char* kTwoTets = R"($MeshFormat
@@ -59,13 +61,6 @@ void expect_error(const std::string& text, std::initializer_list<std::string> fr
     const std::string msg = e.what();
     for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << msg << "' lacks '" << f << "'";
   }
-}
-
-std::string replace(std::string s, const std::string& from, const std::string& to) {
-  const size_t at = s.find(from);
-  EXPECT_NE(at, std::string::npos) << from;
-  if (at != std::string::npos) s.replace(at, from.size(), to);
-  return s;
 }
 
 }  // namespace
@@ -113,16 +108,16 @@ TEST(Gmsh22, WriteThenReadIsTheSameMesh) {
 
 TEST(Gmsh22, MalformedFilesNameTheFileAndLine) {
   const std::string ok = kTwoTets;
-  expect_error(replace(ok, "2.2 0 8", "3.0 0 8"), {"test.msh:2:", "not supported"});
-  expect_error(replace(ok, "2.2 0 8", "2.2 1 8"), {"test.msh:2:", "binary"});
-  expect_error(replace(ok, "20 1 0 0", "20 1 zero 0"), {"test.msh:12:", "'zero'"});
-  expect_error(replace(ok, "30 0 1 0", "20 0 1 0"), {"test.msh:13:", "given twice"});
-  expect_error(replace(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 9 1 50 40 30 99"), {"test.msh:22:", "node 99"});
-  expect_error(replace(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 9 1 50 40 30"), {"test.msh:22:", "needs 4 nodes"});
-  expect_error(replace(ok, "3 4 2 9 1 10 20 40 30", "3 11 2 9 1 10 20 40 30 1 2 3 4 5 6"), {"not a linear tetrahedron"});
-  expect_error(replace(ok, "$EndNodes", "$EndNodez"), {"test.msh:16:", "$EndNodes"});
+  expect_error(replace_once(ok, "2.2 0 8", "3.0 0 8"), {"test.msh:2:", "not supported"});
+  expect_error(replace_once(ok, "2.2 0 8", "2.2 1 8"), {"test.msh:2:", "binary"});
+  expect_error(replace_once(ok, "20 1 0 0", "20 1 zero 0"), {"test.msh:12:", "'zero'"});
+  expect_error(replace_once(ok, "30 0 1 0", "20 0 1 0"), {"test.msh:13:", "given twice"});
+  expect_error(replace_once(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 9 1 50 40 30 99"), {"test.msh:22:", "node 99"});
+  expect_error(replace_once(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 9 1 50 40 30"), {"test.msh:22:", "needs 4 nodes"});
+  expect_error(replace_once(ok, "3 4 2 9 1 10 20 40 30", "3 11 2 9 1 10 20 40 30 1 2 3 4 5 6"), {"not a linear tetrahedron"});
+  expect_error(replace_once(ok, "$EndNodes", "$EndNodez"), {"test.msh:16:", "$EndNodes"});
   expect_error(ok.substr(0, ok.find("$Elements") + 12), {"unexpected end of file"});
-  expect_error(replace(ok, "50 0 0 1", "50 0 0 0"), {"test.msh", "degenerate"});  // flat second tet
+  expect_error(replace_once(ok, "50 0 0 1", "50 0 0 0"), {"test.msh", "degenerate"});  // flat second tet
   expect_error("hello\n", {"test.msh:1:", "section"});
   expect_error("", {"no $MeshFormat"});
   EXPECT_THROW(fio::read_mesh("/nonexistent/x.msh"), fio::MeshFileError);
@@ -189,7 +184,7 @@ $EndElements
   std::sort(base4.begin(), base4.end(), less);
   EXPECT_EQ(base4, base2);
   // A block that holds fewer nodes than the header claims.
-  std::istringstream c(replace(v41, "2 5 10 50", "2 6 10 50"));
+  std::istringstream c(replace_once(v41, "2 5 10 50", "2 6 10 50"));
   EXPECT_THROW(fio::read_gmsh(c, "v41.msh"), fio::MeshFileError);
 }
 
@@ -204,7 +199,7 @@ TEST(TetGen, SameMeshAsTheGmshFile) {
   EXPECT_EQ(t.rest_positions(), m.rest_positions());
   EXPECT_EQ(t.tets(), m.tets());
   EXPECT_EQ(t.regions(), m.regions());
-  std::istringstream n2(node), e2(replace(ele, "1 4 3 2 1 9", "1 4 3 2 7 9"));
+  std::istringstream n2(node), e2(replace_once(ele, "1 4 3 2 1 9", "1 4 3 2 7 9"));
   try {
     fio::read_tetgen(n2, "m.node", e2, "m.ele");
     ADD_FAILURE() << "expected an error";
@@ -212,7 +207,7 @@ TEST(TetGen, SameMeshAsTheGmshFile) {
     EXPECT_NE(std::string(err.what()).find("m.ele:3:"), std::string::npos) << err.what();
     EXPECT_NE(std::string(err.what()).find("point 7"), std::string::npos) << err.what();
   }
-  std::istringstream n3(replace(node, "1 1 0 0 0", "1 1 0 0")), e3(ele);
+  std::istringstream n3(replace_once(node, "1 1 0 0 0", "1 1 0 0")), e3(ele);
   EXPECT_THROW(fio::read_tetgen(n3, "m.node", e3, "m.ele"), fio::MeshFileError);
 }
 
@@ -246,7 +241,7 @@ LOOKUP_TABLE default
   EXPECT_EQ(t.tets(), m.tets());
   EXPECT_EQ(t.regions(), m.regions());
   auto bad = [&](const std::string& from, const std::string& to, const std::string& fragment) {
-    std::istringstream in(replace(vtk, from, to));
+    std::istringstream in(replace_once(vtk, from, to));
     try {
       fio::read_vtk(in, "m.vtk");
       ADD_FAILURE() << "expected an error for " << to;
@@ -314,11 +309,11 @@ TEST(MeshReaders, RandomMutationsAreReadOrRefusedCleanly) {
     }
   }
   // Absurd counts are refused, not allocated.
-  std::istringstream big(replace(kTwoTets, "$Nodes\n5", "$Nodes\n999999999999"));
+  std::istringstream big(replace_once(kTwoTets, "$Nodes\n5", "$Nodes\n999999999999"));
   EXPECT_THROW(fio::read_gmsh(big, "f.msh"), fio::MeshFileError);
-  std::istringstream bigv(replace(vtk, "POINTS 5", "POINTS 999999999999"));
+  std::istringstream bigv(replace_once(vtk, "POINTS 5", "POINTS 999999999999"));
   EXPECT_THROW(fio::read_vtk(bigv, "f.vtk"), fio::MeshFileError);
-  std::istringstream bign(replace(node, "5 3 0 0", "999999999999 3 0 0")), e0(ele);
+  std::istringstream bign(replace_once(node, "5 3 0 0", "999999999999 3 0 0")), e0(ele);
   EXPECT_THROW(fio::read_tetgen(bign, "f.node", e0, "f.ele"), fio::MeshFileError);
   EXPECT_GT(refused, 1000);
   EXPECT_GT(read, 10);  // some mutations are harmless (e.g. in a coordinate's last digit)

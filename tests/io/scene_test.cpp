@@ -19,6 +19,8 @@ using core::Vec3;
 
 namespace {
 
+using fiberfem::testing::replace_once;
+
 const char* kExample = R"(name: beam-demo
 mesh:
   generator: box
@@ -67,13 +69,6 @@ void expect_error(const std::string& yaml, std::initializer_list<std::string> fr
     const std::string msg = e.what();
     for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << msg << "' lacks '" << f << "'";
   }
-}
-
-std::string replace(std::string s, const std::string& from, const std::string& to) {
-  const size_t at = s.find(from);
-  EXPECT_NE(at, std::string::npos) << from;
-  if (at != std::string::npos) s.replace(at, from.size(), to);
-  return s;
 }
 
 }  // namespace
@@ -159,27 +154,27 @@ fixed:
 TEST(Scene, BadInputNamesTheLineAndKeyPath) {
   const std::string ex = kExample;
   // Unknown key, at its own line (line 3 is "  generator: box").
-  expect_error(replace(ex, "  generator: box", "  generater: box"), {"test.yaml:3:", "mesh.generater", "unknown key"});
-  expect_error(replace(ex, "probes:", "probez:"), {"probez", "unknown key"});
+  expect_error(replace_once(ex, "  generator: box", "  generater: box"), {"test.yaml:3:", "mesh.generater", "unknown key"});
+  expect_error(replace_once(ex, "probes:", "probez:"), {"probez", "unknown key"});
   // Wrong type and out of range.
-  expect_error(replace(ex, "dt: 0.0166667", "dt: fast"), {"solver.dt", "expected a number"});
-  expect_error(replace(ex, "dt: 0.0166667", "dt: -1"), {"test.yaml:31:", "solver.dt", "must be in"});
-  expect_error(replace(ex, "cells: [40, 4, 4]", "cells: [40, 0, 4]"), {"mesh.cells[1]", "must be in"});
-  expect_error(replace(ex, "method: pcg", "method: magic"), {"solver.method", "'magic' is not one of pcg, direct"});
-  expect_error(replace(ex, "gravity: [0, 0, -9.81]", "gravity: [0, -9.81]"), {"loads.gravity", "three numbers"});
+  expect_error(replace_once(ex, "dt: 0.0166667", "dt: fast"), {"solver.dt", "expected a number"});
+  expect_error(replace_once(ex, "dt: 0.0166667", "dt: -1"), {"test.yaml:31:", "solver.dt", "must be in"});
+  expect_error(replace_once(ex, "cells: [40, 4, 4]", "cells: [40, 0, 4]"), {"mesh.cells[1]", "must be in"});
+  expect_error(replace_once(ex, "method: pcg", "method: magic"), {"solver.method", "'magic' is not one of pcg, direct"});
+  expect_error(replace_once(ex, "gravity: [0, 0, -9.81]", "gravity: [0, -9.81]"), {"loads.gravity", "three numbers"});
   // Material: missing density, two forms, not positive definite (the engine's message).
-  expect_error(replace(ex, "      density: 1000.0\n", ""), {"regions[0].material", "density"});
-  expect_error(replace(ex, "      G_L: 8.0e3\n", "      G_L: 8.0e3\n      E: 1.0\n"), {"regions[0].material", "one form"});
-  expect_error(replace(ex, "nu_T: 0.45", "nu_T: 1.5"), {"regions[0].material", "nu_T"});
+  expect_error(replace_once(ex, "      density: 1000.0\n", ""), {"regions[0].material", "density"});
+  expect_error(replace_once(ex, "      G_L: 8.0e3\n", "      G_L: 8.0e3\n      E: 1.0\n"), {"regions[0].material", "one form"});
+  expect_error(replace_once(ex, "nu_T: 0.45", "nu_T: 1.5"), {"regions[0].material", "nu_T"});
   // Selectors that match nothing, regions that leave elements out.
-  expect_error(replace(ex, "value: 0.0, tol", "value: 0.5, tol"), {"fixed[0]", "matches no node"});
-  expect_error(replace(ex, "    select: all", "    select: {box: [[0, 0, 0], [0.005, 0.001, 0.001]]}"),
+  expect_error(replace_once(ex, "value: 0.0, tol", "value: 0.5, tol"), {"fixed[0]", "matches no node"});
+  expect_error(replace_once(ex, "    select: all", "    select: {box: [[0, 0, 0], [0.005, 0.001, 0.001]]}"),
                {"regions", "matched by no region"});
   // Not available yet, and not YAML.
-  expect_error(replace(ex, "generator: box", "generator: lv_ellipsoid"), {"mesh.generator", "not available yet"});
-  expect_error(replace(ex, "  uniform: [1, 0, 0]", "  rule: {}"), {"fibers.rule", "not available yet"});
+  expect_error(replace_once(ex, "generator: box", "generator: lv_ellipsoid"), {"mesh.generator", "not available yet"});
+  expect_error(replace_once(ex, "  uniform: [1, 0, 0]", "  rule: {}"), {"fibers.rule", "not available yet"});
   expect_error("mesh: [unclosed", {"test.yaml:", "not valid YAML"});
-  expect_error(replace(ex, "tip: [0.010, 0.0005, 1.0e-3]", "tip: [0.02, 0.0005, 1.0e-3]"), {"probes.tip", "outside the mesh"});
+  expect_error(replace_once(ex, "tip: [0.010, 0.0005, 1.0e-3]", "tip: [0.02, 0.0005, 1.0e-3]"), {"probes.tip", "outside the mesh"});
   expect_error("regions: []\n", {"mesh", "missing"});
 }
 
