@@ -2,6 +2,7 @@
 
 #include "core/box_generator.hpp"
 #include "io/mesh_io.hpp"
+#include "io/sha256.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -117,8 +118,11 @@ std::pair<Vec3, Vec3> box(const Ctx& ctx, const YAML::Node& n, const std::string
 }
 
 // A node selector: plane, box or a named node set. Returns the matching nodes (sorted).
-std::vector<int> select_nodes(const Ctx& ctx, const YAML::Node& n, const std::string& path, const core::TetMesh& mesh) {
-  Map m(ctx, n, path, {"plane", "box", "node_set"});
+std::vector<int> select_nodes(const Ctx& ctx, const YAML::Node& n, const std::string& path, const core::TetMesh& mesh,
+                              const std::vector<std::string>& also_allowed = {}) {
+  std::vector<std::string> allowed{"plane", "box", "node_set"};
+  allowed.insert(allowed.end(), also_allowed.begin(), also_allowed.end());
+  Map m(ctx, n, path, allowed);
   std::vector<int> nodes;
   const auto& X = mesh.rest_positions();
   int kinds = 0;
@@ -221,13 +225,14 @@ Eigen::Vector4d barycentric(const core::TetMesh& mesh, int e, const Vec3& p) {
   return {1 - l.sum(), l.x(), l.y(), l.z()};
 }
 
-core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base_dir) {
+core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base_dir, std::string& mesh_file) {
   if (!top.has("mesh")) ctx.fail(top.node(), "mesh", "missing (a generator or a file)");
   Map m(ctx, top["mesh"], "mesh", {"generator", "size", "cells", "origin", "file", "scale"});
   if (m.has("file") == m.has("generator")) ctx.fail(top["mesh"], "mesh", "give exactly one of generator, file");
   if (m.has("file")) {
     std::string path = text(ctx, m["file"], "mesh.file");
     if (!path.empty() && path[0] != '/' && !base_dir.empty()) path = base_dir + "/" + path;
+    mesh_file = path;
     const double scale = m.has("scale") ? number(ctx, m["scale"], "mesh.scale", 0, HUGE_VAL, true) : 1.0;
     try {
       return read_mesh(path, scale);
@@ -328,7 +333,8 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes"});
 
   // Mesh, then the region of every element (first match wins).
-  core::TetMesh box_mesh = build_mesh(ctx, top, base_dir);
+  std::string mesh_file;
+  core::TetMesh box_mesh = build_mesh(ctx, top, base_dir, mesh_file);
   if (!top.has("regions")) ctx.fail(root, "regions", "missing (at least one region with a material)");
   const YAML::Node regions = top["regions"];
   if (!regions.IsSequence() || regions.size() == 0) ctx.fail(regions, "regions", "expected a non-empty list");
@@ -405,8 +411,23 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   if (top.has("fixed")) {
     const YAML::Node fx = top["fixed"];
     if (!fx.IsSequence()) ctx.fail(fx, "fixed", "expected a list of node selectors");
-    for (size_t i = 0; i < fx.size(); ++i)
-      model.fix_nodes(select_nodes(ctx, fx[i], "fixed[" + std::to_string(i) + "]", model.mesh));
+    for (size_t i = 0; i < fx.size(); ++i) {
+      const std::string path = "fixed[" + std::to_string(i) + "]";
+      const std::vector<int> nodes = select_nodes(ctx, fx[i], path, model.mesh, {"components"});
+      unsigned mask = 0b111;
+      if (fx[i]["components"].IsDefined()) {
+        const YAML::Node c = fx[i]["components"];
+        if (!c.IsSequence() || c.size() == 0 || c.size() > 3)
+          ctx.fail(c, path + ".components", "expected a list of x, y, z (the fixed displacement components)");
+        mask = 0;
+        for (size_t k = 0; k < c.size(); ++k) {
+          const unsigned bit = 1u << (choice(ctx, c[k], path + ".components[" + std::to_string(k) + "]", {"x", "y", "z"})[0] - 'x');
+          if (mask & bit) ctx.fail(c[k], path + ".components[" + std::to_string(k) + "]", "repeated");
+          mask |= bit;
+        }
+      }
+      model.fix_nodes(nodes, mask);
+    }
   }
 
   // Loads.
@@ -454,10 +475,12 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   // Solver.
   core::SimulatorSettings st;
   Mode mode = Mode::dynamic;
+  double until_s = 2.0;
   if (top.has("solver")) {
     Map s(ctx, top["solver"], "solver",
           {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
-           "max_energy_gain"});
+           "max_energy_gain", "until"});
+    if (s.has("until")) until_s = number(ctx, s["until"], "solver.until", 0, 1e9, true);
     if (s.has("mode")) mode = choice(ctx, s["mode"], "solver.mode", {"dynamic", "static"}) == "static" ? Mode::static_ : Mode::dynamic;
     if (s.has("dt")) st.dt_s = number(ctx, s["dt"], "solver.dt", 0, 10, true);
     if (s.has("method"))
@@ -512,7 +535,21 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ": " + e.what());
   }
   std::string name = top.has("name") ? text(ctx, top["name"], "name") : origin;
-  return Scene{std::move(name), std::move(model), st, mode, std::move(probes)};
+  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes)};
+  // The hash covers what determines the run: the scene as parsed (after overrides; comments
+  // and layout do not count) and the bytes of its mesh file.
+  YAML::Emitter canonical;
+  canonical << root;
+  std::string hashed = canonical.c_str();
+  if (!mesh_file.empty()) {
+    std::ifstream mf(mesh_file, std::ios::binary);
+    std::stringstream bytes;
+    bytes << mf.rdbuf();
+    hashed += "\n--- mesh file ---\n" + bytes.str();
+  }
+  scene.hash_sha256 = sha256_hex(hashed);
+  scene.mesh_file = mesh_file;
+  return scene;
 }
 
 core::Vec3 Probe::displacement(const core::TetMesh& mesh, const core::Positions& x) const {

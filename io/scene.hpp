@@ -37,7 +37,14 @@ struct Scene {
   core::Model model;
   core::SimulatorSettings settings;
   Mode mode = Mode::dynamic;
+  /// How long a dynamic run lasts (solver.until), s. Default 2.
+  double until_s = 2.0;
   std::vector<Probe> probes;
+  /// SHA-256 (hex) of the scene as parsed, after overrides (comments and layout do not
+  /// count), followed by the bytes of its mesh file if it has one.
+  std::string hash_sha256;
+  /// The mesh file read (path as opened), or empty for a generator.
+  std::string mesh_file;
 };
 
 /// Parses YAML text. `origin` names the source in error messages (a file name);

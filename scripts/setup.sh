@@ -13,7 +13,7 @@ packages=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev libsuitesparse-dev libopenblas0-pthread
   libgtest-dev libgmock-dev libbenchmark-dev
-  libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev libpng-dev
+  libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev libpng-dev libssl-dev nlohmann-json3-dev
   cyclonedds-dev cyclonedds-tools libhdf5-dev hdf5-tools
   libosmesa6-dev ffmpeg
   python3 python3-venv time

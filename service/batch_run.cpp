@@ -1,0 +1,277 @@
+#include "service/batch_run.hpp"
+
+#include "core/simulator.hpp"
+#include "core/static_solver.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <ostream>
+#include <stdexcept>
+
+namespace fiberfem::service {
+namespace {
+
+using json = nlohmann::ordered_json;
+using Clock = std::chrono::steady_clock;
+
+volatile std::sig_atomic_t g_stop_signal = 0;
+extern "C" void on_stop_signal(int sig) { g_stop_signal = sig; }
+
+json vec(const core::Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const size_t m = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(m), v.end());
+  return v[m];
+}
+
+json energies_json(const core::Energies& e) {
+  return {{"kinetic_j", e.kinetic_j}, {"elastic_j", e.elastic_j}, {"gravity_j", e.gravity_j}};
+}
+
+json probes_json(const io::Scene& sc, const core::Positions& x) {
+  json out = json::array();
+  for (const io::Probe& p : sc.probes) {
+    const core::Vec3 u = p.displacement(sc.model.mesh, x);
+    out.push_back({{"name", p.name}, {"rest_m", vec(p.point_m)}, {"final_m", vec(p.point_m + u)}, {"displacement_m", vec(u)},
+                   {"element", p.element}});
+  }
+  return out;
+}
+
+void print_probes(std::ostream& out, const io::Scene& sc, const core::Positions& x) {
+  char line[256];
+  for (const io::Probe& p : sc.probes) {
+    const core::Vec3 u = p.displacement(sc.model.mesh, x);
+    std::snprintf(line, sizeof line, "probe %s: displacement [%+.6e, %+.6e, %+.6e] m (|u| %.6e m)\n", p.name.c_str(), u.x(),
+                  u.y(), u.z(), u.norm());
+    out << line;
+  }
+}
+
+// Energies of a state at rest velocity (the static solution's).
+core::Energies energies_of(const io::Scene& sc, const core::Positions& x) {
+  core::Simulator sim(sc.model, sc.settings);
+  sim.set_state(x, core::Positions::Zero(3, x.cols()));
+  return sim.energies();
+}
+
+core::StaticReport solve_static(const io::Scene& sc, core::Positions& x) {
+  core::StaticSettings ss;
+  ss.rotation = sc.settings.rotation;
+  ss.corotation = sc.settings.corotation;
+  return core::solve_static(sc.model, x, ss);
+}
+
+// Written to a temporary file and renamed, so a reader never sees half a report.
+void write_report(const std::string& path, const json& report) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) throw std::runtime_error("--report " + path + ": cannot write " + tmp);
+    f << report.dump(2) << "\n";
+    if (!f) throw std::runtime_error("--report " + path + ": write failed");
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+void draw_bar(double fraction, const std::string& text) {
+  constexpr int kWidth = 30;
+  const int filled = std::clamp(static_cast<int>(fraction * kWidth + 0.5), 0, kWidth);
+  std::fprintf(stderr, "\r[%s%s] %3.0f%% %s\033[K", std::string(static_cast<size_t>(filled), '#').c_str(),
+               std::string(static_cast<size_t>(kWidth - filled), '.').c_str(), 100 * fraction, text.c_str());
+  std::fflush(stderr);
+}
+
+}  // namespace
+
+int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
+  const core::Model& model = sc.model;
+  const bool is_static = o.force_static || sc.mode == io::Mode::static_;
+  char line[512];
+  std::snprintf(line, sizeof line, "fiberfem: scene '%s' (%s): %d tets, %d nodes, %d regions, %s\n", sc.name.c_str(),
+                o.source.c_str(), model.mesh.num_elements(), model.mesh.num_nodes(), model.mesh.num_regions(),
+                is_static ? "static" : "dynamic");
+  out << line << std::flush;
+
+  json report;
+  report["format"] = "fiberfem-run-report";
+  report["version"] = 1;
+  report["scene"] = {{"name", sc.name},
+                     {"source", o.source},
+                     {"sha256", sc.hash_sha256},
+                     {"overrides", o.overrides},
+                     {"mesh_file", sc.mesh_file},
+                     {"nodes", model.mesh.num_nodes()},
+                     {"elements", model.mesh.num_elements()},
+                     {"regions", model.mesh.num_regions()}};
+  report["mode"] = is_static ? "static" : "dynamic";
+  const auto t0 = Clock::now();
+  int rc = 0;
+
+  if (is_static) {
+    core::Positions x;
+    const core::StaticReport r = solve_static(sc, x);
+    const double wall = seconds_since(t0);
+    std::snprintf(line, sizeof line, "static: %s after %d Newton iterations in %d load steps, relative residual %.2e, %.2f s\n",
+                  r.converged ? "converged" : "NOT converged", r.newton_iterations, r.load_steps, r.relative_residual, wall);
+    out << line;
+    if (!r.converged) out << "static: " << r.message << "\n";
+    print_probes(out, sc, x);
+    report["status"] = r.converged ? "completed" : "failed";
+    report["reason"] = r.converged ? "" : r.message;
+    report["static"] = {{"converged", r.converged},
+                        {"newton_iterations", r.newton_iterations},
+                        {"load_steps", r.load_steps},
+                        {"relative_residual", r.relative_residual},
+                        {"residual_history", r.residual_history}};
+    report["timing"] = {{"wall_s", wall}};
+    report["energies"] = {{"final", energies_json(energies_of(sc, x))}};
+    report["probes"] = probes_json(sc, x);
+    rc = r.converged ? 0 : 1;
+  } else {
+    core::Simulator sim(model, sc.settings);
+    const double until = o.until_s > 0 ? o.until_s : sc.until_s;
+    const double wanted = o.steps > 0 ? o.steps : std::max(1.0, std::round(until / sc.settings.dt_s));
+    if (wanted > 1e9)
+      throw std::invalid_argument("run: " + std::to_string(until) + " s at dt " + std::to_string(sc.settings.dt_s) +
+                                  " s is over 1e9 steps");
+    const int steps = static_cast<int>(wanted);
+    const core::Energies e0 = sim.energies();
+    g_stop_signal = 0;
+    auto old_int = std::signal(SIGINT, on_stop_signal);
+    auto old_term = std::signal(SIGTERM, on_stop_signal);
+
+    std::vector<double> step_s;
+    step_s.reserve(static_cast<size_t>(std::min(steps, 1 << 20)));
+    core::PhaseTimes total;
+    long iterations = 0, factorizations = 0, substeps = 0;
+    int max_iterations = 0, recovered = 0, max_inverted = 0, done = 0;
+    double max_residual = 0, max_kinetic = e0.kinetic_j, max_speed = 0;
+    std::string status = "completed", reason;
+    auto last_draw = Clock::now();
+    for (int s = 1; s <= steps; ++s) {
+      if (g_stop_signal) {
+        status = "interrupted";
+        reason = std::string("stopped by signal ") + (g_stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
+        break;
+      }
+      const core::StepReport r = sim.step();
+      if (r.status == core::StepStatus::failed) {
+        status = "failed";
+        reason = "step " + std::to_string(s) + " at t = " + std::to_string(sim.time_s()) + " s failed: " + r.message;
+        break;
+      }
+      done = s;
+      step_s.push_back(r.time.total_s);
+      total.rotations_s += r.time.rotations_s;
+      total.assembly_s += r.time.assembly_s;
+      total.solve_s += r.time.solve_s;
+      total.total_s += r.time.total_s;
+      iterations += r.solver_iterations;
+      factorizations += r.solver_factorizations;
+      substeps += r.substeps;
+      max_iterations = std::max(max_iterations, r.solver_iterations);
+      max_residual = std::max(max_residual, r.solver_residual);
+      max_kinetic = std::max(max_kinetic, r.kinetic_energy_j);
+      max_speed = std::max(max_speed, r.max_speed_m_s);
+      max_inverted = std::max(max_inverted, r.inverted_elements);
+      if (r.status == core::StepStatus::recovered) ++recovered;
+
+      const core::Vec3 u = sc.probes.empty() ? core::Vec3::Zero() : sc.probes[0].displacement(model.mesh, sim.positions());
+      std::snprintf(line, sizeof line, "t=%7.3f s  step %5d/%d  %s%s%.3e m  iters %3d  %s  %5.0f steps/s", r.time_s, s, steps,
+                    sc.probes.empty() ? "" : sc.probes[0].name.c_str(), sc.probes.empty() ? "|u| n/a " : " |u| ", u.norm(),
+                    r.solver_iterations, core::to_string(r.status), s / total.total_s);
+      if (o.progress_bar) {
+        if (s == steps || seconds_since(last_draw) > 0.1) {
+          draw_bar(static_cast<double>(s) / steps, line);
+          last_draw = Clock::now();
+        }
+      } else if (s % std::max(1, steps / 5) == 0 || s == steps) {
+        out << line << "\n" << std::flush;
+      }
+    }
+    if (o.progress_bar) std::fprintf(stderr, "\n");
+    std::signal(SIGINT, old_int);
+    std::signal(SIGTERM, old_term);
+    const double wall = seconds_since(t0);
+    const core::Energies e1 = sim.energies();
+
+    std::snprintf(line, sizeof line,
+                  "summary: %s: %d of %d steps, t = %.4g s, %.2f s wall (%.0f steps/s of engine time), %.1f solver "
+                  "iterations/step, %d steps recovered with substeps\n",
+                  status.c_str(), done, steps, sim.time_s(), wall, done > 0 ? done / total.total_s : 0.0,
+                  done > 0 ? static_cast<double>(iterations) / done : 0.0, recovered);
+    out << line;
+    if (!reason.empty()) out << "summary: " << reason << "\n";
+    print_probes(out, sc, sim.positions());
+
+    const double n = std::max(1, done);
+    report["status"] = status;
+    report["reason"] = reason;
+    report["steps"] = {{"requested", steps},
+                       {"completed", done},
+                       {"dt_s", sc.settings.dt_s},
+                       {"simulated_time_s", sim.time_s()},
+                       {"recovered", recovered},
+                       {"substeps", substeps}};
+    report["timing"] = {{"wall_s", wall},
+                        {"engine_s", total.total_s},
+                        {"steps_per_s", done > 0 ? done / total.total_s : 0.0},
+                        {"median_step_s", median(step_s)},
+                        {"max_step_s", step_s.empty() ? 0.0 : *std::max_element(step_s.begin(), step_s.end())},
+                        {"mean_per_step_s",
+                         {{"rotations", total.rotations_s / n},
+                          {"assembly", total.assembly_s / n},
+                          {"solve", total.solve_s / n},
+                          {"total", total.total_s / n}}}};
+    report["solver"] = {{"method", core::to_string(sc.settings.solver.method)},
+                        {"preconditioner", core::to_string(sc.settings.solver.preconditioner)},
+                        {"tolerance", sc.settings.solver.tolerance},
+                        {"rotation", core::to_string(sc.settings.rotation)},
+                        {"iterations_total", iterations},
+                        {"iterations_mean", static_cast<double>(iterations) / n},
+                        {"iterations_max", max_iterations},
+                        {"factorizations", factorizations},
+                        {"max_relative_residual", max_residual}};
+    report["energies"] = {{"initial", energies_json(e0)},
+                          {"final", energies_json(e1)},
+                          {"max_kinetic_j", std::max(max_kinetic, e1.kinetic_j)}};
+    report["state"] = {{"max_speed_m_s", max_speed}, {"max_inverted_elements", max_inverted}};
+    report["probes"] = probes_json(sc, sim.positions());
+    rc = status == "completed" ? 0 : 1;
+
+    if (o.compare_static && rc == 0) {
+      core::Positions xs;
+      const core::StaticReport r = solve_static(sc, xs);
+      json cmp = json::array();
+      for (const io::Probe& p : sc.probes) {
+        const core::Vec3 ud = p.displacement(model.mesh, sim.positions()), us = p.displacement(model.mesh, xs);
+        std::snprintf(line, sizeof line, "static: probe %s: static |u| %.6e m, dynamic - static %.3e m (%.2f%% of static)\n",
+                      p.name.c_str(), us.norm(), (ud - us).norm(), us.norm() > 0 ? 100 * (ud - us).norm() / us.norm() : 0.0);
+        out << line;
+        cmp.push_back({{"name", p.name}, {"static_displacement_m", vec(us)}, {"dynamic_minus_static_m", vec(ud - us)}});
+      }
+      report["static_comparison"] = {{"converged", r.converged}, {"newton_iterations", r.newton_iterations}, {"probes", cmp}};
+      if (!r.converged) out << "static: NOT converged: " << r.message << "\n";
+    }
+  }
+
+  if (!o.report_path.empty()) {
+    write_report(o.report_path, report);
+    out << "report: " << o.report_path << "\n";
+  }
+  return rc;
+}
+
+}  // namespace fiberfem::service

@@ -1,0 +1,31 @@
+#pragma once
+/// @file Batch runs of a scene without the bus (`fiberfem run`): the time loop or static
+/// solve, a progress bar on a terminal, a summary, and the JSON report
+/// (docs/report-format.md).
+
+#include "io/scene.hpp"
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+namespace fiberfem::service {
+
+struct BatchOptions {
+  std::string source;                  ///< Where the scene came from (file path or "builtin:NAME").
+  std::vector<std::string> overrides;  ///< The --set assignments applied (recorded in the report).
+  bool force_static = false;           ///< --static: solve for equilibrium instead of stepping.
+  int steps = 0;                       ///< --steps: step count; 0 takes it from until_s.
+  double until_s = 0;                  ///< --until: simulated time, s; 0 takes the scene's.
+  bool compare_static = false;         ///< After a dynamic run, also solve statically and compare probes.
+  std::string report_path;             ///< --report: where to write the JSON report; empty for none.
+  bool progress_bar = false;           ///< Redraw a progress bar on stderr (a terminal).
+};
+
+/// Runs the scene and prints status lines and a summary to `out`. Stops at the first step
+/// that fails (the reason goes to the summary and the report) or at SIGINT/SIGTERM (the
+/// report is still written, with status "interrupted").
+/// @return 0 if the run completed (and a static solve converged), 1 otherwise.
+int run_batch(const io::Scene& scene, const BatchOptions& options, std::ostream& out);
+
+}  // namespace fiberfem::service

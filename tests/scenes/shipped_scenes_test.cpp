@@ -1,0 +1,137 @@
+// The scenes that ship in configs/scenes/, each run by the real `fiberfem run` with a JSON
+// report, checked against an analytic or published reference (the tolerance of each is
+// argued where it is asserted).
+
+#include "core/builtin_scenes.hpp"
+#include "process_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+namespace {
+
+using fiberfem::testing::read_json;
+using fiberfem::testing::run_process;
+using fiberfem::testing::TempDir;
+using nlohmann::json;
+
+std::string scene(const std::string& name) { return std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/" + name; }
+
+// Runs a scene with extra arguments and returns its report (failing the test if the run did).
+json run_scene(const std::string& file, std::vector<std::string> extra = {}) {
+  TempDir dir;
+  std::vector<std::string> args{FIBERFEM_BIN, "run", scene(file), "--report", dir.file("report.json")};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const auto r = run_process(args);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  json report = read_json(dir.file("report.json"));
+  EXPECT_EQ(report.value("status", ""), "completed") << r.output;
+  return report;
+}
+
+json probe(const json& report, const std::string& name) {
+  for (const json& p : report["probes"])
+    if (p["name"] == name) return p;
+  ADD_FAILURE() << "no probe " << name;
+  return json::object();
+}
+
+double uz(const json& report, const std::string& name) { return probe(report, name)["displacement_m"][2].get<double>(); }
+
+// Timoshenko tip deflection (downwards, positive) of the 10 x 1 x 1 cm cantilevers under a
+// 1.5 Pa end traction.
+double beam_theory(double E, double G) {
+  const double area = 0.01 * 0.01;
+  return fiberfem::core::cantilever_tip_deflection(0.1, 0.01, 0.01, E, G, 0, 1.5 * area);
+}
+
+// Linear tetrahedra converge to the beam from the stiff side, slowly in bending. The test
+// runs the shipped mesh (40 x 4 x 4 cells) and one twice as fine, and checks
+//  - the error shrinks at least by 1.8 (first order or better; linear elements give O(h)
+//    in energy, O(h^2) displacements asymptotically);
+//  - Richardson extrapolation of the two with order 2 lands within 3% of beam theory: the
+//    beam theory itself differs from 3D elasticity by about 1% at length/height 10 (the
+//    clamped end also stops the Poisson contraction), and the pair is not yet asymptotic
+//    (measured ratios 2.0 to 2.4, not 4), so extrapolation with order 2 under-corrects;
+//  - fibers across make the beam softer by the ratio beam theory gives, within 5%.
+struct Cantilever {
+  double coarse, fine;
+  double extrapolated() const { return fine + (fine - coarse) / 3.0; }
+};
+
+// Memoised: two tests use the fibers-along beam.
+Cantilever run_cantilever(const std::string& file) {
+  static std::map<std::string, Cantilever> done;
+  if (const auto it = done.find(file); it != done.end()) return it->second;
+  Cantilever c{};
+  c.coarse = -uz(run_scene(file), "tip");
+  c.fine = -uz(run_scene(file, {"--cells", "80", "8", "8"}), "tip");
+  return done[file] = c;
+}
+
+TEST(ShippedScenes, CantileverFibersAlongMatchesBeamTheory) {
+  const Cantilever c = run_cantilever("cantilever-along.yaml");
+  const double beam = beam_theory(60e3, 8e3);  // E_L, G_L
+  RecordProperty("coarse_mm", std::to_string(1e3 * c.coarse));
+  RecordProperty("fine_mm", std::to_string(1e3 * c.fine));
+  RecordProperty("beam_mm", std::to_string(1e3 * beam));
+  EXPECT_LT(c.coarse, c.fine);
+  EXPECT_LT(c.fine, beam);
+  EXPECT_GT((beam - c.coarse) / (beam - c.fine), 1.8);
+  EXPECT_NEAR(c.extrapolated() / beam, 1.0, 0.03) << "coarse " << c.coarse << " fine " << c.fine << " beam " << beam;
+}
+
+TEST(ShippedScenes, CantileverFibersAcrossMatchesBeamTheory) {
+  const Cantilever across = run_cantilever("cantilever-across.yaml");
+  const Cantilever along = run_cantilever("cantilever-along.yaml");
+  // Bending along x now uses the transverse modulus and the transverse shear modulus.
+  const double E_T = 20e3, G_T = E_T / (2 * (1 + 0.45));
+  const double beam = beam_theory(E_T, G_T);
+  EXPECT_LT(across.coarse, across.fine);
+  EXPECT_LT(across.fine, beam);
+  EXPECT_GT((beam - across.coarse) / (beam - across.fine), 1.8);
+  EXPECT_NEAR(across.extrapolated() / beam, 1.0, 0.03) << "coarse " << across.coarse << " fine " << across.fine;
+  EXPECT_NEAR((across.extrapolated() / along.extrapolated()) / (beam / beam_theory(60e3, 8e3)), 1.0, 0.05);
+}
+
+// A column on a frictionless floor under its own weight (uniaxial stress rho g (H - z)):
+// the sag of the top centre is rho g H^2 / (2 E_L) and the strain energy
+// rho^2 g^2 A H^3 / (6 E_L). Tolerance 1%: the exact displacement is quadratic along z,
+// which linear elements on 20 layers represent to O(h^2) = 0.25% (nodally exact in 1D);
+// the floor holds the base flat where elasticity would bow it by nu rho g r^2 / (2 E_L),
+// 0.5% of the sag at the corners, less at the centre. The run is dynamic: it must also
+// have settled (kinetic energy 1e-9 of the elastic) within its one second.
+TEST(ShippedScenes, BoxUnderGravitySagsAsElasticityPredicts) {
+  const json r = run_scene("box-gravity.yaml");
+  const double rho = 1000, g = 9.81, H = 0.05, A = 1e-4, E_L = 60e3;
+  EXPECT_NEAR(-uz(r, "top") / (rho * g * H * H / (2 * E_L)), 1.0, 0.01);
+  // Mid-height: rho g (H z - z^2 / 2) / E_L at z = H / 2.
+  EXPECT_NEAR(-uz(r, "mid") / (rho * g * (H * H / 2 - H * H / 8) / E_L), 1.0, 0.01);
+  const double energy = r["energies"]["final"]["elastic_j"].get<double>();
+  EXPECT_NEAR(energy / (rho * rho * g * g * A * H * H * H / (6 * E_L)), 1.0, 0.01);
+  EXPECT_LT(r["energies"]["final"]["kinetic_j"].get<double>(), 1e-9 * energy);
+  EXPECT_EQ(r["steps"]["completed"], 60);
+}
+
+// Land et al. 2015 problem 1 (REFERENCES.md). Published (nonlinear Guccione, follower
+// pressure, converged meshes): deformed z of the point (10, 0.5, 1) mm is 4.17 mm, codes
+// from 4.15 to 4.19. Here the small-strain limit of that material, nearly incompressible,
+// on linear tetrahedra, which lock in bending: the value is far below 4.17 at the shipped
+// 40 x 4 x 4 cells (an independent implementation: 2.54 mm at 40 x 4 x 4, 3.45 mm at
+// 80 x 8 x 8) and rises towards it with refinement. The test pins what must hold whatever
+// the locking: the beam bends up (the pressure pushes along the inward normal +z), the
+// point's z rises with refinement, stays below the top of the published band, and the
+// locking is what it is for this incompressibility (the fine mesh gains at least 25%).
+TEST(ShippedScenes, LandBeamConvergesTowardsThePublishedDeflectionFromBelow) {
+  const double coarse = 1e-3 + uz(run_scene("land-beam.yaml"), "end");
+  const double fine = 1e-3 + uz(run_scene("land-beam.yaml", {"--cells", "80", "8", "8"}), "end");
+  RecordProperty("coarse_z_mm", std::to_string(1e3 * coarse));
+  RecordProperty("fine_z_mm", std::to_string(1e3 * fine));
+  EXPECT_GT(coarse, 1.5e-3) << "the beam must bend up, several millimetres";
+  EXPECT_GT(fine, 1.25 * coarse);
+  EXPECT_LT(fine, 4.19e-3);
+}
+
+}  // namespace
