@@ -1,6 +1,7 @@
 #include "io/scene.hpp"
 
 #include "core/box_generator.hpp"
+#include "core/lv_ellipsoid.hpp"
 #include "io/mesh_io.hpp"
 #include "io/sha256.hpp"
 
@@ -227,7 +228,8 @@ Eigen::Vector4d barycentric(const core::TetMesh& mesh, int e, const Vec3& p) {
 
 core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base_dir, std::string& mesh_file) {
   if (!top.has("mesh")) ctx.fail(top.node(), "mesh", "missing (a generator or a file)");
-  Map m(ctx, top["mesh"], "mesh", {"generator", "size", "cells", "origin", "file", "scale"});
+  Map m(ctx, top["mesh"], "mesh",
+        {"generator", "size", "cells", "origin", "file", "scale", "inner", "outer", "base_z", "resolution"});
   if (m.has("file") == m.has("generator")) ctx.fail(top["mesh"], "mesh", "give exactly one of generator, file");
   if (m.has("file")) {
     std::string path = text(ctx, m["file"], "mesh.file");
@@ -242,8 +244,35 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
   }
   if (m.has("scale")) ctx.fail(m["scale"], "mesh.scale", "goes with mesh.file");
   const std::string gen = text(ctx, m["generator"], "mesh.generator");
+  if (gen == "lv_ellipsoid") {
+    for (const char* k : {"size", "cells", "origin"})
+      if (m.has(k)) ctx.fail(m[k], m.sub(k), "is a box key (lv_ellipsoid takes inner, outer, base_z, resolution)");
+    core::LvEllipsoidSpec lv;
+    auto radii = [&](const char* key, double& rs, double& rl) {
+      if (!m.has(key)) return;
+      Map r(ctx, m[key], m.sub(key), {"rs", "rl"});
+      if (r.has("rs")) rs = number(ctx, r["rs"], r.sub("rs"), 0, HUGE_VAL, true);
+      if (r.has("rl")) rl = number(ctx, r["rl"], r.sub("rl"), 0, HUGE_VAL, true);
+    };
+    radii("inner", lv.endo_rs_m, lv.endo_rl_m);
+    radii("outer", lv.epi_rs_m, lv.epi_rl_m);
+    if (m.has("base_z")) lv.base_z_m = number(ctx, m["base_z"], "mesh.base_z");
+    if (m.has("resolution")) {
+      Map r(ctx, m["resolution"], "mesh.resolution", {"circumferential", "longitudinal", "transmural"});
+      if (r.has("circumferential")) lv.circumferential = integer(ctx, r["circumferential"], r.sub("circumferential"), 6, 100000);
+      if (r.has("longitudinal")) lv.longitudinal = integer(ctx, r["longitudinal"], r.sub("longitudinal"), 2, 100000);
+      if (r.has("transmural")) lv.transmural = integer(ctx, r["transmural"], r.sub("transmural"), 1, 100000);
+    }
+    try {
+      return core::make_lv_ellipsoid(lv);
+    } catch (const std::invalid_argument& e) {
+      ctx.fail(top["mesh"], "mesh", e.what());
+    }
+  }
   if (gen != "box")
-    ctx.fail(m["generator"], "mesh.generator", "'" + gen + "' is not available yet (available: box)");
+    ctx.fail(m["generator"], "mesh.generator", "'" + gen + "' is not available (available: box, lv_ellipsoid)");
+  for (const char* k : {"inner", "outer", "base_z", "resolution"})
+    if (m.has(k)) ctx.fail(m[k], m.sub(k), "is an lv_ellipsoid key (box takes size, cells, origin)");
   core::BoxSpec spec;
   if (m.has("size")) spec.size_m = vec3(ctx, m["size"], "mesh.size");
   if (m.has("cells")) {
@@ -535,7 +564,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ": " + e.what());
   }
   std::string name = top.has("name") ? text(ctx, top["name"], "name") : origin;
-  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes)};
+  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), {}, {}};
   // The hash covers what determines the run: the scene as parsed (after overrides; comments
   // and layout do not count) and the bytes of its mesh file.
   YAML::Emitter canonical;

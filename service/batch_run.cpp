@@ -1,5 +1,6 @@
 #include "service/batch_run.hpp"
 
+#include "core/mesh_quality.hpp"
 #include "core/simulator.hpp"
 #include "core/static_solver.hpp"
 
@@ -99,9 +100,11 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
   const core::Model& model = sc.model;
   const bool is_static = o.force_static || sc.mode == io::Mode::static_;
   char line[512];
-  std::snprintf(line, sizeof line, "fiberfem: scene '%s' (%s): %d tets, %d nodes, %d regions, %s\n", sc.name.c_str(),
-                o.source.c_str(), model.mesh.num_elements(), model.mesh.num_nodes(), model.mesh.num_regions(),
-                is_static ? "static" : "dynamic");
+  const core::MeshQuality quality = core::mesh_quality(model.mesh);
+  std::snprintf(line, sizeof line,
+                "fiberfem: scene '%s' (%s): %d tets, %d nodes, %d regions, dihedral angles %.1f to %.1f deg, %s\n",
+                sc.name.c_str(), o.source.c_str(), model.mesh.num_elements(), model.mesh.num_nodes(),
+                model.mesh.num_regions(), quality.min_dihedral_deg, quality.max_dihedral_deg, is_static ? "static" : "dynamic");
   out << line << std::flush;
 
   json report;
@@ -114,7 +117,10 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                      {"mesh_file", sc.mesh_file},
                      {"nodes", model.mesh.num_nodes()},
                      {"elements", model.mesh.num_elements()},
-                     {"regions", model.mesh.num_regions()}};
+                     {"regions", model.mesh.num_regions()},
+                     {"min_dihedral_deg", quality.min_dihedral_deg},
+                     {"max_dihedral_deg", quality.max_dihedral_deg},
+                     {"min_radius_ratio", quality.min_radius_ratio}};
   report["mode"] = is_static ? "static" : "dynamic";
   const auto t0 = Clock::now();
   int rc = 0;

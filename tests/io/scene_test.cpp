@@ -6,6 +6,7 @@
 #include "io/scene.hpp"
 
 #include "core/box_generator.hpp"
+#include "core/lv_ellipsoid.hpp"
 #include "test_support.hpp"
 
 #include <cmath>
@@ -171,7 +172,8 @@ TEST(Scene, BadInputNamesTheLineAndKeyPath) {
   expect_error(replace_once(ex, "    select: all", "    select: {box: [[0, 0, 0], [0.005, 0.001, 0.001]]}"),
                {"regions", "matched by no region"});
   // Not available yet, and not YAML.
-  expect_error(replace_once(ex, "generator: box", "generator: lv_ellipsoid"), {"mesh.generator", "not available yet"});
+  expect_error(replace_once(ex, "generator: box", "generator: palm"), {"mesh.generator", "available: box, lv_ellipsoid"});
+  expect_error(replace_once(ex, "generator: box", "generator: lv_ellipsoid"), {"mesh.size", "box key"});
   expect_error(replace_once(ex, "  uniform: [1, 0, 0]", "  rule: {}"), {"fibers.rule", "not available yet"});
   expect_error("mesh: [unclosed", {"test.yaml:", "not valid YAML"});
   expect_error(replace_once(ex, "tip: [0.010, 0.0005, 1.0e-3]", "tip: [0.02, 0.0005, 1.0e-3]"), {"probes.tip", "outside the mesh"});
@@ -255,4 +257,60 @@ TEST(Scene, OverridesSetKeysBeforeParsing) {
       EXPECT_NE(std::string(e.what()).find("--set"), std::string::npos) << bad << ": " << e.what();
     }
   }
+}
+
+// The benchmark ellipsoid from a scene: the keys reach the generator (the same mesh as
+// core's generator with the same spec), its surfaces are node sets that selectors use (the
+// base held, a cavity pressure on the endocardium), and box keys are refused by name.
+TEST(Scene, LvEllipsoidGeneratorAndItsSurfaces) {
+  const std::string yaml = R"(name: lv
+mesh:
+  generator: lv_ellipsoid
+  inner: {rs: 0.007, rl: 0.017}
+  outer: {rs: 0.010, rl: 0.020}
+  base_z: 0.005
+  resolution: {circumferential: 18, longitudinal: 6, transmural: 2}
+regions:
+  - select: all
+    material: {E: 10.0e3, nu: 0.45, density: 1000}
+fixed:
+  - node_set: base
+loads:
+  tractions:
+    - on: {node_set: endo}
+      pressure: 1000.0
+)";
+  const sc::Scene s = sc::parse_scene(yaml, "lv.yaml");
+  core::LvEllipsoidSpec spec;
+  spec.circumferential = 18;
+  spec.longitudinal = 6;
+  spec.transmural = 2;
+  const core::TetMesh m = core::make_lv_ellipsoid(spec);
+  EXPECT_EQ(s.model.mesh.rest_positions(), m.rest_positions());
+  EXPECT_EQ(s.model.mesh.tets(), m.tets());
+  // Base nodes fixed, nothing else.
+  const auto& base = m.node_set("base");
+  int fixed = 0;
+  for (std::uint8_t f : s.model.fixed_dofs) fixed += f;
+  EXPECT_EQ(fixed, 3 * static_cast<int>(base.size()));
+  // The cavity pressure acts on endocardial faces only, and its net force on the closed
+  // cavity is the pressure times the base opening's projected area along +z (the cavity
+  // is open at the base): p * pi * rs_base^2 with rs_base = rs sqrt(1 - (z_b / rl)^2),
+  // up to the faceting of the base ring (a polygon of 18 sides: area factor
+  // 18 sin(2 pi / 18) / (2 pi) = 0.980).
+  ASSERT_EQ(s.model.loads.surface_loads.size(), 1u);
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.num_nodes());
+  core::add_surface_load(m.rest_positions(), s.model.loads.surface_loads[0], f);
+  Vec3 net = Vec3::Zero();
+  for (int n = 0; n < m.num_nodes(); ++n) net += f.segment<3>(3 * n);
+  const double rs_base = 0.007 * std::sqrt(1 - std::pow(0.005 / 0.017, 2));
+  const double polygon = 18 * std::sin(2 * M_PI / 18) / (2 * M_PI);
+  EXPECT_NEAR(net.z() / (1000.0 * M_PI * rs_base * rs_base * polygon), -1.0, 1e-9);
+  EXPECT_NEAR(net.x(), 0, 1e-12);
+  EXPECT_NEAR(net.y(), 0, 1e-12);
+
+  expect_error(replace_once(yaml, "base_z: 0.005", "base_z: 0.005\n  cells: [1, 1, 1]"), {"test.yaml:7:", "mesh.cells", "box key"});
+  expect_error(replace_once(yaml, "transmural: 2", "transmural: 0"), {"test.yaml:7:", "mesh.resolution.transmural"});
+  expect_error(replace_once(yaml, "rs: 0.010", "rs: 0.005"), {"test.yaml:", "mesh", "epi_rs_m"});
+  expect_error(replace_once(yaml, "lv_ellipsoid", "biventricle"), {"test.yaml:3:", "mesh.generator", "available: box, lv_ellipsoid"});
 }

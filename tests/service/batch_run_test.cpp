@@ -59,6 +59,10 @@ TEST(BatchRun, ReportDescribesTheRun) {
   EXPECT_EQ(j["scene"]["elements"], 10 * 2 * 2 * 6);
   EXPECT_EQ(j["scene"]["nodes"], 11 * 3 * 3);
   EXPECT_EQ(j["scene"]["sha256"].get<std::string>().size(), 64u);
+  // The cells are 2 mm cubes (0.02 / 10, 0.004 / 2): Kuhn tetrahedra of a cube have
+  // dihedral angles 45, 60 and 90 degrees.
+  EXPECT_NEAR(j["scene"]["min_dihedral_deg"].get<double>(), 45.0, 1e-9);
+  EXPECT_NEAR(j["scene"]["max_dihedral_deg"].get<double>(), 90.0, 1e-9);
   // 0.2 s at 0.01 s: 20 steps, and the simulated time they add up to.
   EXPECT_EQ(j["steps"]["requested"], 20);
   EXPECT_EQ(j["steps"]["completed"], 20);
