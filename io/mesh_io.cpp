@@ -39,6 +39,20 @@ class Lines {
   int number_ = 0;
 };
 
+// A number read from a file and used as an integer (id, count, tag): refused unless it is
+// whole and within [lo, hi] (casting an out-of-range double is undefined behaviour).
+template <class Source>
+long whole(Source& src, double v, const std::string& what, double lo = -9007199254740992.0,
+           double hi = 9007199254740992.0) {
+  if (!(v >= lo && v <= hi) || v != std::floor(v)) {
+    std::ostringstream m;
+    m << what << " must be an integer in [" << lo << ", " << hi << "], got " << v;
+    src.fail(m.str());
+  }
+  return static_cast<long>(v);
+}
+constexpr double kIntMax = 2147483647.0;
+
 // Parses all whitespace-separated fields of a line as numbers of type T.
 template <class T>
 std::vector<T> fields(Lines& lines, const std::string& line, const std::string& what) {
@@ -112,10 +126,11 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
           // point: tag x y z nphys phys...; others: tag 6 bounds nphys phys... nbound bound...
           const size_t at = dim == 0 ? 4 : 7;
           if (f.size() < at + 1) lines.fail("entity line too short");
-          const long nphys = static_cast<long>(f[at]);
+          const long nphys = whole(lines, f[at], "the physical tag count", 0, kIntMax);
           if (nphys < 0 || f.size() < at + 1 + static_cast<size_t>(nphys)) lines.fail("bad physical tag count");
-          std::vector<int>& ph = entity_physicals[{dim, static_cast<int>(f[0])}];
-          for (long k = 0; k < nphys; ++k) ph.push_back(static_cast<int>(f[at + 1 + static_cast<size_t>(k)]));
+          std::vector<int>& ph = entity_physicals[{dim, static_cast<int>(whole(lines, f[0], "the entity tag", -kIntMax, kIntMax))}];
+          for (long k = 0; k < nphys; ++k)
+            ph.push_back(static_cast<int>(whole(lines, f[at + 1 + static_cast<size_t>(k)], "a physical tag", -kIntMax, kIntMax)));
         }
       expect(lines, "$EndEntities");
     } else if (line == "$Nodes" && major == 4) {
@@ -190,8 +205,7 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
       for (long i = 0; i < n; ++i) {
         const std::vector<double> f = fields<double>(lines, lines.need("a node"), "number");
         if (f.size() != 4) lines.fail("expected 'id x y z'");
-        const long id = static_cast<long>(f[0]);
-        if (static_cast<double>(id) != f[0] || id < 1) lines.fail("node id must be a positive integer");
+        const long id = whole(lines, f[0], "the node id", 1);
         if (!std::isfinite(f[1]) || !std::isfinite(f[2]) || !std::isfinite(f[3])) lines.fail("non-finite coordinate");
         if (!index_of_id.emplace(id, static_cast<int>(points.size())).second)
           lines.fail("node " + std::to_string(id) + " is given twice");
@@ -216,7 +230,7 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
         }
         if (static_cast<long>(f.size()) != 3 + ntags + it->second)
           lines.fail("element type " + std::to_string(type) + " needs " + std::to_string(it->second) + " nodes");
-        const int physical = ntags > 0 ? static_cast<int>(f[3]) : 0;
+        const int physical = ntags > 0 ? static_cast<int>(whole(lines, static_cast<double>(f[3]), "the physical tag", -kIntMax, kIntMax)) : 0;
         std::vector<int> nodes;
         for (int k = 0; k < it->second; ++k) {
           const long id = f[static_cast<size_t>(3 + ntags + k)];
@@ -289,8 +303,9 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
   Lines nl(node, node_origin);
   const std::vector<double> h = tetgen_fields(nl, "'<points> <dim> <attributes> <markers>'");
   if (h.size() < 2 || h[1] != 3) nl.fail("expected '<points> 3 <attributes> <markers>' (three-dimensional)");
-  const long n = static_cast<long>(h[0]);
-  const long nattr = h.size() > 2 ? static_cast<long>(h[2]) : 0, nmark = h.size() > 3 ? static_cast<long>(h[3]) : 0;
+  const long n = whole(nl, h[0], "the point count");
+  const long nattr = h.size() > 2 ? whole(nl, h[2], "the attribute count", 0, 1e6) : 0;
+  const long nmark = h.size() > 3 ? whole(nl, h[3], "the marker count") : 0;
   if (n < 0 || nattr < 0 || nmark < 0 || nmark > 1) nl.fail("bad header counts");
   std::map<long, int> index_of_id;
   std::vector<core::Vec3> pts;
@@ -298,8 +313,8 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
     const std::vector<double> f = tetgen_fields(nl, "a point");
     if (static_cast<long>(f.size()) != 4 + nattr + nmark) nl.fail("expected 'id x y z' plus attributes and marker");
     if (!std::isfinite(f[1]) || !std::isfinite(f[2]) || !std::isfinite(f[3])) nl.fail("non-finite coordinate");
-    if (!index_of_id.emplace(static_cast<long>(f[0]), static_cast<int>(i)).second)
-      nl.fail("point " + std::to_string(static_cast<long>(f[0])) + " is given twice");
+    const long id = whole(nl, f[0], "the point id");
+    if (!index_of_id.emplace(id, static_cast<int>(i)).second) nl.fail("point " + std::to_string(id) + " is given twice");
     pts.push_back(scale * core::Vec3(f[1], f[2], f[3]));
   }
   core::Positions X(3, static_cast<Eigen::Index>(pts.size()));
@@ -307,7 +322,8 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
   Lines el(ele, ele_origin);
   const std::vector<double> eh = tetgen_fields(el, "'<tetrahedra> <nodes per tet> <attributes>'");
   if (eh.size() < 2 || eh[1] != 4) el.fail("expected '<tetrahedra> 4 <attributes>' (linear tetrahedra)");
-  const long ne = static_cast<long>(eh[0]), eattr = eh.size() > 2 ? static_cast<long>(eh[2]) : 0;
+  const long ne = whole(el, eh[0], "the tetrahedron count");
+  const long eattr = eh.size() > 2 ? whole(el, eh[2], "the attribute count", 0, 1e6) : 0;
   if (ne < 0 || eattr < 0) el.fail("bad header counts");
   std::vector<core::Tet> tets;
   std::vector<int> regions;
@@ -316,16 +332,14 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
     if (static_cast<long>(f.size()) != 5 + eattr) el.fail("expected 'id n1 n2 n3 n4' plus attributes");
     core::Tet t{};
     for (int k = 0; k < 4; ++k) {
-      const auto it = index_of_id.find(static_cast<long>(f[static_cast<size_t>(1 + k)]));
+      const long id = whole(el, f[static_cast<size_t>(1 + k)], "a point id");
+      const auto it = index_of_id.find(id);
       if (it == index_of_id.end())
-        el.fail("tetrahedron refers to point " + std::to_string(static_cast<long>(f[static_cast<size_t>(1 + k)])) +
-                ", which is not in " + node_origin);
+        el.fail("tetrahedron refers to point " + std::to_string(id) + ", which is not in " + node_origin);
       t[static_cast<size_t>(k)] = it->second;
     }
     tets.push_back(t);
-    const double attr = eattr > 0 ? f[5] : 0;
-    if (attr < 0 || attr != std::floor(attr)) el.fail("the region attribute must be a non-negative integer");
-    regions.push_back(static_cast<int>(attr));
+    regions.push_back(eattr > 0 ? static_cast<int>(whole(el, f[5], "the region attribute (non-negative)", 0, kIntMax)) : 0);
   }
   try {
     return core::TetMesh(std::move(X), std::move(tets), std::move(regions));
@@ -465,9 +479,8 @@ core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale
           std::vector<long> values;
           for (long i = 0; i < comps * tuples; ++i) {
             const double v = t.number<double>("cell value");
-            values.push_back(static_cast<long>(v));
-            if (tags.empty() && comps == 1 && (v < 0 || v != std::floor(v)))
-              t.fail("the region tag must be a non-negative integer");
+            // Only a one-component array can be the region tags; others hold any number.
+            values.push_back(tags.empty() && comps == 1 ? whole(t, v, "the region tag (non-negative)", 0, kIntMax) : 0);
           }
           if (tags.empty() && comps == 1 && tuples == n) tags = std::move(values);
         }
@@ -484,8 +497,7 @@ core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale
         std::vector<long> values;
         for (long i = 0; i < n; ++i) {
           const double v = t.number<double>("cell value");
-          values.push_back(static_cast<long>(v));
-          if (tags.empty() && (v < 0 || v != std::floor(v))) t.fail("the region tag must be a non-negative integer");
+          values.push_back(tags.empty() ? whole(t, v, "the region tag (non-negative)", 0, kIntMax) : 0);
         }
         if (tags.empty()) tags = std::move(values);
       }

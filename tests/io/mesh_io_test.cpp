@@ -119,6 +119,11 @@ TEST(Gmsh22, MalformedFilesNameTheFileAndLine) {
   expect_error(ok.substr(0, ok.find("$Elements") + 12), {"unexpected end of file"});
   expect_error(replace_once(ok, "50 0 0 1", "50 0 0 0"), {"test.msh", "degenerate"});  // flat second tet
   expect_error("hello\n", {"test.msh:1:", "section"});
+  // Found by fuzzing: an id too large for an integer (casting it was undefined behaviour).
+  expect_error(replace_once(ok, "20 1 0 0", "22222222222222222222222222222222222222222 1 0 0"),
+               {"test.msh:12:", "node id must be an integer"});
+  expect_error(replace_once(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 3000000000 1 50 40 30 20"),
+               {"test.msh:22:", "physical tag must be an integer"});
   expect_error("", {"no $MeshFormat"});
   EXPECT_THROW(fio::read_mesh("/nonexistent/x.msh"), fio::MeshFileError);
   EXPECT_THROW(fio::read_mesh("mesh.stl"), fio::MeshFileError);
