@@ -8,7 +8,7 @@
 
 namespace fiberfem::core {
 
-Vec12 gather(const Positions& x, const Tet& t) {
+Vec12 gather(const Eigen::Ref<const Positions>& x, const Tet& t) {
   Vec12 v;
   for (int a = 0; a < 4; ++a) v.segment<3>(3 * a) = x.col(t[static_cast<size_t>(a)]);
   return v;

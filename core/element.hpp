@@ -28,6 +28,6 @@ Mat12 element_stiffness(const Vec12& X, const Material& material, const Vec3& fi
 Vec12 active_stress_vector(const Vec12& X, const Vec3& fiber);
 
 /// Element displacement vector of the four nodes (12) from a 3 x N position matrix.
-Vec12 gather(const Positions& x, const Tet& t);
+Vec12 gather(const Eigen::Ref<const Positions>& x, const Tet& t);
 
 }  // namespace fiberfem::core
