@@ -39,6 +39,11 @@ struct SolverSettings {
   double tolerance = 1e-6;    ///< PCG relative residual |r|/|b|, in (0, 1). Default 1e-6.
   int max_iterations = 500;   ///< PCG iteration cap, >= 1. Default 500.
   bool warm_start = true;     ///< PCG starts from the last velocity. Default true.
+  /// With warm_start: the initial guess is the best combination (Galerkin projection, the
+  /// least A-norm error) of the given guess and the last `recycled_solutions` solutions,
+  /// which costs one pass over A for all of them; 0 keeps the given guess. In [0, 64].
+  /// Default 8 (halves PCG iterations on the cantilever benchmark, docs/performance.md).
+  int recycled_solutions = 8;
   /// A step whose relative residual ends above this counts as failed (rolled back and
   /// retried with substeps), in (0, inf). Default 1e-2.
   double failure_residual = 1e-2;
@@ -71,6 +76,9 @@ class LinearSolver {
   /// The matrix changed by more than a step's motion (time step, material, damping):
   /// solvers that reuse a factorisation refresh it at the next solve.
   virtual void invalidate() {}
+  /// The state jumped (reset, set_state): forget remembered solutions, so a run from a
+  /// state does not depend on what was solved before it.
+  virtual void forget_solutions() {}
   /// Names the family of the next matrices (the simulator passes the step size h):
   /// solvers that reuse factorisations keep one per family.
   virtual void set_matrix_key(double /*key*/) {}

@@ -116,6 +116,7 @@ void Simulator::reset() {
   block_q_.assign(block_node_.size(), Eigen::Quaterniond::Identity());
   block_R_.assign(block_node_.size(), Mat3::Identity());
   solver_->invalidate();
+  solver_->forget_solutions();
   vfree_ = Eigen::VectorXd::Zero(sys_.num_free());
   vfree_prev_ = vfree_;
   time_s_ = 0;
@@ -142,6 +143,7 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
   apply_fixed();
   vfree_ = sys_.restrict_to_free(v_);
   vfree_prev_ = vfree_;
+  solver_->forget_solutions();
   // Re-seed the warm-started rotations from the new shape (exact, by SVD).
   const int ne = model_.mesh.num_elements();
 #pragma omp parallel for schedule(static)

@@ -508,7 +508,9 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   if (top.has("solver")) {
     Map s(ctx, top["solver"], "solver",
           {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
-           "max_energy_gain", "until"});
+           "max_energy_gain", "until", "recycled_solutions"});
+    if (s.has("recycled_solutions"))
+      st.solver.recycled_solutions = integer(ctx, s["recycled_solutions"], "solver.recycled_solutions", 0, 64);
     if (s.has("until")) until_s = number(ctx, s["until"], "solver.until", 0, 1e9, true);
     if (s.has("mode")) mode = choice(ctx, s["mode"], "solver.mode", {"dynamic", "static"}) == "static" ? Mode::static_ : Mode::dynamic;
     if (s.has("dt")) st.dt_s = number(ctx, s["dt"], "solver.dt", 0, 10, true);

@@ -97,6 +97,7 @@ core::Model make_beam(const Size& size, bool fiber) {
 }
 
 int g_refresh = 8;
+int g_recycled = fiberfem::core::SolverSettings{}.recycled_solutions;
 double g_energy_gain = core::SimulatorSettings{}.max_energy_gain;
 
 core::SimulatorSettings settings_for(const Case& c, double tol) {
@@ -108,6 +109,7 @@ core::SimulatorSettings settings_for(const Case& c, double tol) {
   st.rotation = c.rotation;
   st.solver.preconditioner = c.preconditioner;
   st.solver.refresh_iterations = g_refresh;
+  st.solver.recycled_solutions = g_recycled;
   st.max_energy_gain = c.energy_check ? g_energy_gain : std::numeric_limits<double>::infinity();
   return st;
 }
@@ -197,6 +199,8 @@ int main(int argc, char** argv) {
   app.add_option("--out", out, "Also write the Markdown report to this file");
   app.add_option("--tolerance", tol, "PCG relative tolerance")->capture_default_str();
   app.add_option("--refresh-iterations", refresh, "Cholesky preconditioner refresh threshold")->capture_default_str();
+  app.add_option("--recycled-solutions", g_recycled, "PCG warm start: previous solutions projected on (0: extrapolation)")
+      ->capture_default_str();
   app.add_option("--max-energy-gain", g_energy_gain, "SimulatorSettings::max_energy_gain (inf: off)")
       ->capture_default_str();
   app.add_option("--threads", threads, "OpenMP threads (0 = all cores)")->capture_default_str();

@@ -322,6 +322,39 @@ TEST(LinearSolver, WarmStartFromTheSolutionTakesNoIterations) {
   }
 }
 
+// The recycled warm start is the Galerkin projection onto the last solutions: a right-hand
+// side that is a combination of earlier ones has its solution in their span, so the guess
+// is already the solution (up to round-off); without recycling, or after
+// forget_solutions(), PCG starts from the extrapolated guess and iterates.
+TEST(LinearSolver, RecycledSolutionsMakeTheGuessExactInTheirSpan) {
+  System S = make_system();
+  const core::SparseMatrix& A = S.sys.matrix();
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0, 1);
+  Eigen::VectorXd b2(S.b.size());
+  for (Eigen::Index i = 0; i < b2.size(); ++i) b2(i) = n(rng);
+  const Eigen::VectorXd b3 = 0.3 * S.b - 2.0 * b2;
+  auto run = [&](int recycled, bool forget) {
+    core::SolverSettings st = pcg(core::PreconditionerKind::block_jacobi, 1e-10);
+    st.recycled_solutions = recycled;
+    auto solver = make(st, S.sys);
+    Eigen::VectorXd x;
+    EXPECT_TRUE(solver->solve(A, S.b, x).ok);
+    EXPECT_TRUE(solver->solve(A, b2, x).ok);
+    if (forget) solver->forget_solutions();
+    x.setZero();
+    const core::SolveStats third = solver->solve(A, b3, x);
+    EXPECT_TRUE(third.ok);
+    EXPECT_LE(residual(A, b3, x), 1e-10);
+    EXPECT_LE((x - dense_solve(A, b3)).norm(), 1e-7 * x.norm());
+    return third.iterations;
+  };
+  const int recycled = run(8, false), plain = run(0, false), forgotten = run(8, true);
+  EXPECT_LE(recycled, 1);
+  EXPECT_GT(plain, 20);
+  EXPECT_EQ(forgotten, plain);
+}
+
 TEST(LinearSolver, IterationCapIsRespectedAndReportedNotOk) {
   System S = make_system();
   const core::SparseMatrix& A = S.sys.matrix();
@@ -415,6 +448,8 @@ TEST(SolverSettings, ValidateNamesTheField) {
       {with([](auto& s) { s.failure_residual = 0; }), "failure_residual"},
       {with([&](auto& s) { s.failure_residual = inf; }), "failure_residual"},
       {with([&](auto& s) { s.failure_residual = nan; }), "failure_residual"},
+      {with([](auto& s) { s.recycled_solutions = -1; }), "recycled_solutions"},
+      {with([](auto& s) { s.recycled_solutions = 65; }), "recycled_solutions"},
   };
   for (const auto& [s, field] : bad) {
     expect_invalid([&] { s.validate(); }, {"solver", field});
