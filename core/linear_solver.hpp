@@ -36,6 +36,11 @@ struct SolverSettings {
   /// With the cholesky preconditioner: a solve that needs more iterations than this makes
   /// the next solve refactorise, >= 1. Default 8.
   int refresh_iterations = 8;
+  /// With the cholesky preconditioner: apply the factor in single precision (a float copy
+  /// of the CHOLMOD factor; the factorisation and PCG stay double). The preconditioner is
+  /// an approximation of a lagged matrix anyway; its round-off (1e-7) is far below the
+  /// lag's. Default true. Without CHOLMOD it has no effect.
+  bool single_precision_preconditioner = true;
   double tolerance = 1e-6;    ///< PCG relative residual |r|/|b|, in (0, 1). Default 1e-6.
   int max_iterations = 500;   ///< PCG iteration cap, >= 1. Default 500.
   bool warm_start = true;     ///< PCG starts from the last velocity. Default true.

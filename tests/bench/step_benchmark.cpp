@@ -98,6 +98,7 @@ core::Model make_beam(const Size& size, bool fiber) {
 
 int g_refresh = 8;
 int g_recycled = fiberfem::core::SolverSettings{}.recycled_solutions;
+bool g_double_preconditioner = false;
 double g_energy_gain = core::SimulatorSettings{}.max_energy_gain;
 
 core::SimulatorSettings settings_for(const Case& c, double tol) {
@@ -110,6 +111,7 @@ core::SimulatorSettings settings_for(const Case& c, double tol) {
   st.solver.preconditioner = c.preconditioner;
   st.solver.refresh_iterations = g_refresh;
   st.solver.recycled_solutions = g_recycled;
+  st.solver.single_precision_preconditioner = !g_double_preconditioner;
   st.max_energy_gain = c.energy_check ? g_energy_gain : std::numeric_limits<double>::infinity();
   return st;
 }
@@ -199,6 +201,7 @@ int main(int argc, char** argv) {
   app.add_option("--out", out, "Also write the Markdown report to this file");
   app.add_option("--tolerance", tol, "PCG relative tolerance")->capture_default_str();
   app.add_option("--refresh-iterations", refresh, "Cholesky preconditioner refresh threshold")->capture_default_str();
+  app.add_flag("--double-preconditioner", g_double_preconditioner, "Apply the Cholesky preconditioner in double precision");
   app.add_option("--recycled-solutions", g_recycled, "PCG warm start: previous solutions projected on (0: extrapolation)")
       ->capture_default_str();
   app.add_option("--max-energy-gain", g_energy_gain, "SimulatorSettings::max_energy_gain (inf: off)")

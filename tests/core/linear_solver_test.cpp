@@ -213,6 +213,7 @@ TEST(LinearSolver, CholeskyPcgRefreshesAStaleFactor) {
   }
   {
     core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-12, 3);
+    s.single_precision_preconditioner = false;  // exact with a fresh factor (see below for float)
     auto solver = make(s, S.sys);
     Eigen::VectorXd x;
     ASSERT_EQ(solver->solve(A1, S.b, x).factorizations, 1);
@@ -225,6 +226,28 @@ TEST(LinearSolver, CholeskyPcgRefreshesAStaleFactor) {
     EXPECT_GE(st.iterations, 3) << "the first, capped attempt counts too";
     EXPECT_LE(st.iterations, 3 + 1);
     EXPECT_LE(residual(A3, S.b, x), 2e-12);
+  }
+}
+
+// The single-precision copy of the factor: with a fresh factor each PCG iteration cuts the
+// residual by about float round-off (1e-7 relative), so 1e-12 takes two iterations where
+// the double factor takes one; the solution is the same to the tolerance.
+TEST(LinearSolver, SinglePrecisionPreconditionerIsAccurateToFloatRoundOff) {
+  System S = make_system();
+  const core::SparseMatrix& A = S.sys.matrix();
+  const Eigen::VectorXd x_ref = dense_solve(A, S.b);
+  for (bool single : {true, false}) {
+    core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-12);
+    s.single_precision_preconditioner = single;
+    s.recycled_solutions = 0;
+    auto solver = make(s, S.sys);
+    Eigen::VectorXd x;
+    const core::SolveStats st = solver->solve(A, S.b, x);
+    EXPECT_TRUE(st.ok);
+    EXPECT_EQ(st.factorizations, 1);
+    EXPECT_EQ(st.iterations, single ? 2 : 1) << (single ? "float" : "double");
+    EXPECT_LE(residual(A, S.b, x), 1e-12);
+    EXPECT_LE((x - x_ref).norm(), 1e-9 * x_ref.norm());
   }
 }
 
