@@ -425,11 +425,17 @@ class PcgSolver final : public LinearSolver {
     const int* inner = A.innerIndexPtr();
     const double* val = A.valuePtr();
     const int rows = static_cast<int>(A.rows());
+    const double* w = history_.data();
+    const Eigen::Index stride = history_.cols();
 #pragma omp parallel for schedule(static)
     for (int r = 0; r < rows; ++r) {
-      Eigen::Matrix<double, 1, Eigen::Dynamic, Eigen::RowMajor, 1, 64> acc = Eigen::RowVectorXd::Zero(m);
-      for (int p = outer[r]; p < outer[r + 1]; ++p) acc.noalias() += val[p] * W.row(inner[p]);
-      AW.row(r) = acc;
+      double acc[64] = {};
+      for (int p = outer[r]; p < outer[r + 1]; ++p) {
+        const double v = val[p];
+        const double* wr = w + inner[p] * stride;
+        for (int k = 0; k < m; ++k) acc[k] += v * wr[k];
+      }
+      for (int k = 0; k < m; ++k) AW(r, k) = acc[k];
     }
     const Eigen::MatrixXd G = W.transpose() * AW;
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(G);
