@@ -56,6 +56,7 @@ void Model::validate() {
     throw std::invalid_argument("fixed: mask has " + std::to_string(fixed_dofs.size()) +
                                 " entries for " + std::to_string(3 * mesh.num_nodes()) + " DOFs");
   if (!loads.gravity_m_s2.allFinite()) throw std::invalid_argument("loads: gravity must be finite");
+  contraction.validate(nr, mesh.num_elements());
   for (size_t i = 0; i < loads.point_forces.size(); ++i) {
     const PointForce& p = loads.point_forces[i];
     if (p.node < 0 || p.node >= mesh.num_nodes())

@@ -3,6 +3,7 @@
 /// element, constraints and loads. Scene files are parsed outside core/ into this.
 
 #include "core/material.hpp"
+#include "core/contraction.hpp"
 #include "core/mesh.hpp"
 
 #include <optional>
@@ -56,6 +57,8 @@ struct Model {
   /// Fixed (Dirichlet, zero displacement) flag per degree of freedom (3N), or empty for none.
   std::vector<std::uint8_t> fixed_dofs;
   Loads loads;
+  /// Fiber-directed contraction; off unless a region has a peak tension (no per-step cost).
+  Contraction contraction;
 
   /// Fixes the given components (mask bit 0 = x, 1 = y, 2 = z) of each node.
   void fix_nodes(const std::vector<int>& nodes, unsigned component_mask = 0b111);

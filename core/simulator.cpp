@@ -86,6 +86,10 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   }
   R_.assign(static_cast<size_t>(ne), Mat3::Identity());
   q_.assign(static_cast<size_t>(ne), Eigen::Quaterniond::Identity());
+  if (model_.contraction.enabled()) {  // per-step tensions come from the schedule
+    caches_.build_active(model_);
+    active_.assign(static_cast<size_t>(ne), 0.0);
+  }
   reset();
 }
 
@@ -215,6 +219,17 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
 
   // Phase 2: assembly of A and of the elastic and active forces.
   t0 = Clock::now();
+  const Contraction& con = model_.contraction;
+  if (con.enabled()) {
+    // The tension at the end of the (sub)step, as backward Euler evaluates forces there.
+    const double t_end = time_s_ + h;
+    const auto& regions = model_.mesh.regions();
+    for (int e = 0; e < ne; ++e) {
+      const size_t i = static_cast<size_t>(e);
+      active_[i] = con.tension(regions[i], con.element_delay_s.empty() ? 0.0 : con.element_delay_s[i], t_end);
+    }
+  }
+  const bool rest_frame_active = con.enabled() && con.mode == ContractionMode::nodal_forces;
   sys_.zero_matrix();
   f_.setZero(sys_.num_dofs());
   const bool active = !active_.empty();
@@ -229,12 +244,17 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
         const Vec12 Ku = K * u;
         acc[static_cast<size_t>(omp_get_thread_num())].energy += 0.5 * u.dot(Ku);
         Vec12 floc = -Ku;
-        if (active) {
+        if (active && !rest_frame_active) {
           floc -= active_[i] * caches_.g[i];
           for (int a = 0; a < 4; ++a)
             f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * (R * caches_.g[i].segment<3>(3 * a));
         }
         for (int a = 0; a < 4; ++a) fe.segment<3>(3 * a) = R * floc.segment<3>(3 * a);
+        if (active && rest_frame_active) {  // the paper's forces along the rest fibers
+          fe -= active_[i] * caches_.g[i];
+          for (int a = 0; a < 4; ++a)
+            f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * caches_.g[i].segment<3>(3 * a);
+        }
         const double c = h * beta_e_[i] + h * h;
         for (int a = 0; a < 4; ++a)
           for (int b = a; b < 4; ++b) {
@@ -557,6 +577,8 @@ void Simulator::set_corotation(bool on) {
 }
 
 void Simulator::set_active_tension(std::vector<double> tension_pa) {
+  if (model_.contraction.enabled())
+    throw std::invalid_argument("set_active_tension: the model's contraction schedule sets the tension");
   if (tension_pa.empty()) {
     active_.clear();
     return;

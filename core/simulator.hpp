@@ -133,7 +133,9 @@ class Simulator {
   void set_rotation_method(RotationMethod m);
   void set_corotation(bool on);
   /// Active tension per element (Pa) along the current fiber (PHYSICS.md section 6);
-  /// an empty vector turns contraction off (no per-step cost).
+  /// an empty vector turns contraction off (no per-step cost). For models without a
+  /// contraction schedule (Model::contraction): with one, the schedule sets the tension
+  /// at the end of every (sub)step and this throws.
   void set_active_tension(std::vector<double> tension_pa);
 
  private:

@@ -1,0 +1,61 @@
+#pragma once
+/// @file Fiber-directed contraction (PHYSICS.md section 6): a periodic twitch of active
+/// tension per region, optionally delayed per element by a pacing site and a conduction
+/// speed, applied as an active stress along the deformed fiber (the default) or, as in
+/// the paper, as nodal forces along the rest fibers.
+
+#include "core/types.hpp"
+
+#include <string>
+#include <vector>
+
+namespace fiberfem::core {
+
+/// Shape of one beat, normalised to a peak of 1.
+enum class TwitchShape {
+  biexponential,  ///< (exp(-t/tau1) - exp(-t/tau2)) / beta (REFERENCES.md), peak 1 at t*.
+  sine,           ///< sin^2(pi t / systole) for t < systole, 0 after.
+};
+const char* to_string(TwitchShape s);
+
+struct Twitch {
+  TwitchShape shape = TwitchShape::biexponential;
+  double tau1_s = 0.05;      ///< biexponential: rise time constant, s (> 0, < tau2). Default 0.05.
+  double tau2_s = 0.11;      ///< biexponential: decay time constant, s. Default 0.11.
+  double systole_s = 0.3;    ///< sine: duration of the active part, s (> 0). Default 0.3.
+  /// Normalised tension at time `t` since the beat started (0 for t < 0).
+  double value(double t) const;
+  /// Time of the peak, s.
+  double peak_time() const;
+  /// @throws std::invalid_argument naming the field.
+  void validate() const;
+};
+
+enum class ContractionMode {
+  active_stress,  ///< -T_a R g^e: along the deformed fiber (default).
+  nodal_forces,   ///< -T_a g^e: along the rest fiber, the paper's periodic external forces.
+};
+const char* to_string(ContractionMode m);
+
+/// When and how hard each element contracts. Disabled when every peak tension is zero.
+struct Contraction {
+  ContractionMode mode = ContractionMode::active_stress;
+  double period_s = 60.0 / 72.0;          ///< Beat period, s (> 0). Default 72 beats/min.
+  Twitch twitch{};
+  std::vector<double> region_peak_pa;     ///< Peak tension per region id, Pa (>= 0); empty: off.
+  std::vector<double> element_delay_s;    ///< Activation delay per element, s (>= 0); empty: none.
+
+  bool enabled() const;
+  /// Tension of an element of region `region` with delay `delay_s` at time `t_s`, Pa.
+  double tension(int region, double delay_s, double t_s) const;
+  /// @param num_regions, num_elements sizes to check against.
+  /// @throws std::invalid_argument naming the field and index.
+  void validate(int num_regions, int num_elements) const;
+};
+
+/// Activation delays for a pacing site: distance from `site_m` to each element centroid
+/// over `speed_m_s` (straight-line distance: a conduction that is uniform and unobstructed).
+/// @throws std::invalid_argument for a non-positive or non-finite speed or site.
+std::vector<double> pacing_delays(const Positions& rest, const std::vector<Tet>& tets, const Vec3& site_m, double speed_m_s);
+
+}  // namespace fiberfem::core
