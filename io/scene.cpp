@@ -2,6 +2,8 @@
 
 #include "core/box_generator.hpp"
 #include "core/lv_ellipsoid.hpp"
+#include "core/fiber_fields.hpp"
+#include "io/fiber_file.hpp"
 #include "io/mesh_io.hpp"
 #include "io/sha256.hpp"
 
@@ -346,6 +348,186 @@ void apply_override(YAML::Node root, const std::string& assignment) {
   }
 }
 
+// Nodes selected by `key` (a node selector) or the named node set `fallback`.
+std::vector<int> nodes_or_set(const Ctx& ctx, const Map& m, const std::string& key, const std::string& fallback,
+                              const core::TetMesh& mesh) {
+  if (m.has(key)) return select_nodes(ctx, m[key], m.sub(key), mesh);
+  const auto it = mesh.node_sets().find(fallback);
+  if (it == mesh.node_sets().end())
+    ctx.fail(m.node(), m.sub(key), "missing, and the mesh has no node set '" + fallback + "' to default to");
+  return it->second;
+}
+
+std::string resolve(const std::string& path, const std::string& base_dir) {
+  return !path.empty() && path[0] != '/' && !base_dir.empty() ? base_dir + "/" + path : path;
+}
+
+// fibers: uniform | rule | strokes | file (docs/scenes.md, docs/fiber-format.md).
+std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::TetMesh& mesh, const std::string& base_dir) {
+  Map f(ctx, node, "fibers", {"uniform", "strokes", "rule", "file"});
+  int kinds = 0;
+  for (const char* k : {"uniform", "strokes", "rule", "file"}) kinds += f.has(k) ? 1 : 0;
+  if (kinds != 1) ctx.fail(node, "fibers", "give exactly one of uniform, rule, strokes, file");
+  const size_t ne = static_cast<size_t>(mesh.num_elements());
+  if (f.has("uniform")) {
+    const Vec3 u = vec3(ctx, f["uniform"], "fibers.uniform");
+    if (u.norm() < 1e-12) ctx.fail(f["uniform"], "fibers.uniform", "must not be zero");
+    return std::vector<Vec3>(ne, u.normalized());
+  }
+  try {
+    if (f.has("rule")) {
+      Map r(ctx, f["rule"], "fibers.rule", {"endo_angle", "epi_angle", "inner", "outer", "apex_to_base"});
+      core::HelixRule rule;
+      if (r.has("endo_angle")) rule.endo_angle_deg = number(ctx, r["endo_angle"], r.sub("endo_angle"), -180, 180);
+      if (r.has("epi_angle")) rule.epi_angle_deg = number(ctx, r["epi_angle"], r.sub("epi_angle"), -180, 180);
+      if (r.has("apex_to_base")) {
+        rule.apex_to_base = vec3(ctx, r["apex_to_base"], r.sub("apex_to_base"));
+        if (rule.apex_to_base.norm() < 1e-12) ctx.fail(r["apex_to_base"], r.sub("apex_to_base"), "must not be zero");
+      }
+      const std::vector<int> inner = nodes_or_set(ctx, r, "inner", "endo", mesh);
+      const std::vector<int> outer = nodes_or_set(ctx, r, "outer", "epi", mesh);
+      const Eigen::VectorXd t = core::laplace_coordinate(mesh, inner, outer);
+      return core::helix_rule_fibers(mesh, t, rule).fiber;
+    }
+    if (f.has("strokes")) {
+      Map st(ctx, f["strokes"], "fibers.strokes", {"lines", "file", "radius"});
+      std::vector<std::vector<Vec3>> lines;
+      if (st.has("lines")) {
+        const YAML::Node l = st["lines"];
+        if (!l.IsSequence() || l.size() == 0) ctx.fail(l, "fibers.strokes.lines", "expected a list of polylines [[x,y,z], ...]");
+        for (size_t k = 0; k < l.size(); ++k) {
+          const std::string path = "fibers.strokes.lines[" + std::to_string(k) + "]";
+          if (!l[k].IsSequence() || l[k].size() < 2) ctx.fail(l[k], path, "a polyline needs two points at least");
+          std::vector<Vec3> pts;
+          for (size_t i = 0; i < l[k].size(); ++i) pts.push_back(vec3(ctx, l[k][i], path + "[" + std::to_string(i) + "]"));
+          bool moves = false;
+          for (size_t i = 1; i < pts.size(); ++i) moves = moves || (pts[i] - pts[i - 1]).norm() > 0;
+          if (!moves) ctx.fail(l[k], path, "needs two distinct points");
+          lines.push_back(std::move(pts));
+        }
+      }
+      if (st.has("file")) {
+        const std::string path = resolve(text(ctx, st["file"], "fibers.strokes.file"), base_dir);
+        std::ifstream in(path);
+        if (!in) ctx.fail(st["file"], "fibers.strokes.file", "cannot open " + path);
+        auto more = read_polylines(in, path);
+        lines.insert(lines.end(), more.begin(), more.end());
+      }
+      if (lines.empty()) ctx.fail(f["strokes"], "fibers.strokes", "give lines or file");
+      // Default radius: the mean edge length of the mesh.
+      double radius = 0;
+      if (st.has("radius")) {
+        radius = number(ctx, st["radius"], "fibers.strokes.radius", 0, HUGE_VAL, true);
+      } else {
+        double sum = 0;
+        for (const core::Tet& t : mesh.tets())
+          for (int a = 0; a < 4; ++a)
+            for (int b = a + 1; b < 4; ++b) sum += (mesh.rest_positions().col(t[a]) - mesh.rest_positions().col(t[b])).norm();
+        radius = sum / (6.0 * mesh.num_elements());
+      }
+      std::vector<int> nodes;
+      std::vector<Vec3> dirs;
+      for (int n = 0; n < mesh.num_nodes(); ++n) {
+        const Vec3 p = mesh.rest_positions().col(n);
+        double best = HUGE_VAL;
+        Vec3 tangent = Vec3::Zero();
+        for (const auto& line : lines)
+          for (size_t i = 1; i < line.size(); ++i) {
+            const Vec3 a = line[i - 1], d = line[i] - line[i - 1];
+            if (d.norm() == 0) continue;
+            const double s = std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
+            const double dist = (a + s * d - p).norm();
+            if (dist < best) best = dist, tangent = d;
+          }
+        if (best <= radius) {
+          nodes.push_back(n);
+          dirs.push_back(tangent.normalized());
+        }
+      }
+      if (nodes.empty())
+        ctx.fail(f["strokes"], "fibers.strokes", "no node lies within radius " + std::to_string(radius) + " m of a stroke");
+      return core::interpolate_directions(mesh, nodes, dirs);
+    }
+    // file: one vector per element, or per node (then interpolated sign-blind).
+    const std::string path = resolve(text(ctx, f["file"], "fibers.file"), base_dir);
+    std::ifstream in(path);
+    if (!in) ctx.fail(f["file"], "fibers.file", "cannot open " + path);
+    std::vector<int> line_of;
+    const std::vector<Vec3> v = read_fiber_vectors(in, path, &line_of);
+    if (v.size() == ne) {
+      std::vector<Vec3> out(ne);
+      for (size_t e = 0; e < ne; ++e) out[e] = v[e].normalized();
+      return out;
+    }
+    if (v.size() == static_cast<size_t>(mesh.num_nodes())) {
+      std::vector<int> all(v.size());
+      for (size_t n = 0; n < all.size(); ++n) all[n] = static_cast<int>(n);
+      return core::interpolate_directions(mesh, all, v);
+    }
+    ctx.fail(f["file"], "fibers.file",
+             path + " has " + std::to_string(v.size()) + " vectors; the mesh has " + std::to_string(ne) + " elements and " +
+                 std::to_string(mesh.num_nodes()) + " nodes");
+  } catch (const FiberFileError& e) {
+    ctx.fail(node, "fibers", e.what());
+  } catch (const SceneError&) {
+    throw;
+  } catch (const std::invalid_argument& e) {
+    ctx.fail(node, "fibers", e.what());
+  }
+}
+
+// contraction (docs/scenes.md).
+core::Contraction contraction(const Ctx& ctx, const YAML::Node& node, const core::TetMesh& mesh,
+                              const std::vector<std::string>& region_names) {
+  Map c(ctx, node, "contraction", {"mode", "peak_tension", "heart_rate", "period", "twitch", "regions", "pacing"});
+  core::Contraction con;
+  if (c.has("mode"))
+    con.mode = choice(ctx, c["mode"], "contraction.mode", {"active_stress", "nodal_forces"}) == "nodal_forces"
+                   ? core::ContractionMode::nodal_forces
+                   : core::ContractionMode::active_stress;
+  if (c.has("heart_rate") && c.has("period")) ctx.fail(node, "contraction", "give heart_rate or period, not both");
+  if (c.has("heart_rate")) con.period_s = 60.0 / number(ctx, c["heart_rate"], "contraction.heart_rate", 1, 600);
+  if (c.has("period")) con.period_s = number(ctx, c["period"], "contraction.period", 0.05, 60);
+  if (c.has("twitch")) {
+    Map t(ctx, c["twitch"], "contraction.twitch", {"shape", "tau1", "tau2", "systole"});
+    if (t.has("shape"))
+      con.twitch.shape = choice(ctx, t["shape"], t.sub("shape"), {"biexponential", "sine"}) == "sine" ? core::TwitchShape::sine
+                                                                                                   : core::TwitchShape::biexponential;
+    if (t.has("tau1")) con.twitch.tau1_s = number(ctx, t["tau1"], t.sub("tau1"), 0, 10, true);
+    if (t.has("tau2")) con.twitch.tau2_s = number(ctx, t["tau2"], t.sub("tau2"), 0, 10, true);
+    if (t.has("systole")) con.twitch.systole_s = number(ctx, t["systole"], t.sub("systole"), 0, 60, true);
+    try {
+      con.twitch.validate();
+    } catch (const std::invalid_argument& e) {
+      ctx.fail(c["twitch"], "contraction.twitch", e.what());
+    }
+    if (con.twitch.shape == core::TwitchShape::sine && con.twitch.systole_s > con.period_s)
+      ctx.fail(c["twitch"], "contraction.twitch.systole", "is longer than the period");
+  }
+  const double peak = c.has("peak_tension") ? number(ctx, c["peak_tension"], "contraction.peak_tension", 0, 1e9) : 0.0;
+  con.region_peak_pa.assign(static_cast<size_t>(mesh.num_regions()), peak);
+  if (c.has("regions")) {
+    const YAML::Node r = c["regions"];
+    if (!r.IsMap()) ctx.fail(r, "contraction.regions", "expected a mapping region name: peak tension (Pa)");
+    for (const auto& kv : r) {
+      const std::string name = kv.first.as<std::string>();
+      const auto it = std::find(region_names.begin(), region_names.end(), name);
+      if (it == region_names.end())
+        ctx.fail(kv.first, "contraction.regions." + name, "no region of that name (regions: " + join(region_names) + ")");
+      con.region_peak_pa[static_cast<size_t>(it - region_names.begin())] =
+          number(ctx, kv.second, "contraction.regions." + name, 0, 1e9);
+    }
+  }
+  if (!c.has("peak_tension") && !c.has("regions")) ctx.fail(node, "contraction", "needs peak_tension (Pa) or regions");
+  if (c.has("pacing")) {
+    Map p(ctx, c["pacing"], "contraction.pacing", {"at", "speed"});
+    if (!p.has("at") || !p.has("speed")) ctx.fail(c["pacing"], "contraction.pacing", "needs at: [x, y, z] and speed (m/s)");
+    con.element_delay_s = core::pacing_delays(mesh.rest_positions(), mesh.tets(), vec3(ctx, p["at"], p.sub("at")),
+                                              number(ctx, p["speed"], p.sub("speed"), 0, 1e3, true));
+  }
+  return con;
+}
+
 }  // namespace
 
 Scene parse_scene(const std::string& yaml_text, const std::string& origin, const std::string& base_dir,
@@ -359,7 +541,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
   }
   for (const std::string& o : overrides) apply_override(root, o);
-  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes"});
+  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes", "contraction"});
 
   // Mesh, then the region of every element (first match wins).
   std::string mesh_file;
@@ -371,11 +553,13 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   std::vector<int> region_of(static_cast<size_t>(ne), -1);
   std::vector<core::Material> materials;
   std::vector<core::RayleighDamping> dampings;
+  std::vector<std::string> region_names;
   bool any_damping = false;
   for (size_t r = 0; r < regions.size(); ++r) {
     const std::string path = "regions[" + std::to_string(r) + "]";
     Map reg(ctx, regions[r], path, {"name", "select", "material", "damping"});
     if (!reg.has("material")) ctx.fail(regions[r], path, "needs a material");
+    region_names.push_back(reg.has("name") ? text(ctx, reg["name"], reg.sub("name")) : "region" + std::to_string(r));
     materials.push_back(material(ctx, reg["material"], reg.sub("material")));
     core::RayleighDamping d;
     if (reg.has("damping")) {
@@ -425,16 +609,9 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
 
   // Fibers.
   model.set_uniform_fiber(Vec3::UnitX());
-  if (top.has("fibers")) {
-    Map f(ctx, top["fibers"], "fibers", {"uniform", "strokes", "rule", "file"});
-    for (const char* k : {"strokes", "rule", "file"})
-      if (f.has(k)) ctx.fail(f[k], f.sub(k), "not available yet (the heart issue adds it); use uniform");
-    if (f.has("uniform")) {
-      const Vec3 u = vec3(ctx, f["uniform"], "fibers.uniform");
-      if (u.norm() < 1e-12) ctx.fail(f["uniform"], "fibers.uniform", "must not be zero");
-      model.set_uniform_fiber(u.normalized());
-    }
-  }
+  if (top.has("fibers")) model.fibers = fibers(ctx, top["fibers"], model.mesh, base_dir);
+
+  if (top.has("contraction")) model.contraction = contraction(ctx, top["contraction"], model.mesh, region_names);
 
   // Fixed nodes.
   if (top.has("fixed")) {

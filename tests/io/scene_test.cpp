@@ -6,6 +6,7 @@
 #include "io/scene.hpp"
 
 #include "core/box_generator.hpp"
+#include "core/fiber_fields.hpp"
 #include "core/lv_ellipsoid.hpp"
 #include "test_support.hpp"
 
@@ -66,6 +67,17 @@ void expect_error(const std::string& yaml, std::initializer_list<std::string> fr
   try {
     sc::parse_scene(yaml, "test.yaml");
     ADD_FAILURE() << "expected a SceneError mentioning " << *fragments.begin() << " for:\n" << yaml;
+  } catch (const sc::SceneError& e) {
+    const std::string msg = e.what();
+    for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << msg << "' lacks '" << f << "'";
+  }
+}
+
+// parse_scene with a base directory, expecting a SceneError mentioning every fragment.
+void expect_error_in(const std::string& yaml, const std::string& dir, std::initializer_list<std::string> fragments) {
+  try {
+    sc::parse_scene(yaml, dir + "/lv.yaml", dir);
+    ADD_FAILURE() << "expected a SceneError mentioning " << *fragments.begin();
   } catch (const sc::SceneError& e) {
     const std::string msg = e.what();
     for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << msg << "' lacks '" << f << "'";
@@ -174,7 +186,8 @@ TEST(Scene, BadInputNamesTheLineAndKeyPath) {
   // Not available yet, and not YAML.
   expect_error(replace_once(ex, "generator: box", "generator: palm"), {"mesh.generator", "available: box, lv_ellipsoid"});
   expect_error(replace_once(ex, "generator: box", "generator: lv_ellipsoid"), {"mesh.size", "box key"});
-  expect_error(replace_once(ex, "  uniform: [1, 0, 0]", "  rule: {}"), {"fibers.rule", "not available yet"});
+  expect_error(replace_once(ex, "  uniform: [1, 0, 0]", "  rule: {}"), {"fibers.rule.inner", "no node set 'endo'"});
+  expect_error(replace_once(ex, "  uniform: [1, 0, 0]", "  uniform: [1, 0, 0]\n  file: f.txt"), {"fibers", "exactly one of"});
   expect_error("mesh: [unclosed", {"test.yaml:", "not valid YAML"});
   expect_error(replace_once(ex, "tip: [0.010, 0.0005, 1.0e-3]", "tip: [0.02, 0.0005, 1.0e-3]"), {"probes.tip", "outside the mesh"});
   expect_error("regions: []\n", {"mesh", "missing"});
@@ -313,4 +326,102 @@ loads:
   expect_error(replace_once(yaml, "transmural: 2", "transmural: 0"), {"test.yaml:7:", "mesh.resolution.transmural"});
   expect_error(replace_once(yaml, "rs: 0.010", "rs: 0.005"), {"test.yaml:", "mesh", "epi_rs_m"});
   expect_error(replace_once(yaml, "lv_ellipsoid", "biventricle"), {"test.yaml:3:", "mesh.generator", "available: box, lv_ellipsoid"});
+}
+
+namespace {
+const char* kLv = R"(name: lv
+mesh:
+  generator: lv_ellipsoid
+  resolution: {circumferential: 18, longitudinal: 6, transmural: 2}
+regions:
+  - name: myocardium
+    select: all
+    material: {E_L: 60.0e3, E_T: 20.0e3, nu_LT: 0.25, nu_T: 0.45, G_L: 8.0e3, density: 1000}
+fibers:
+  rule: {endo_angle: 60, epi_angle: -60}
+fixed:
+  - node_set: base
+)";
+}  // namespace
+
+// fibers.rule is core's helix rule on the harmonic coordinate between endo and epi.
+TEST(Scene, FiberRuleIsTheHelixRule) {
+  const sc::Scene s = sc::parse_scene(kLv, "lv.yaml");
+  const core::TetMesh& m = s.model.mesh;
+  const core::FiberField f =
+      core::helix_rule_fibers(m, core::laplace_coordinate(m, m.node_set("endo"), m.node_set("epi")), core::HelixRule{});
+  ASSERT_EQ(s.model.fibers.size(), f.fiber.size());
+  for (size_t e = 0; e < f.fiber.size(); ++e) EXPECT_LT((s.model.fibers[e] - f.fiber[e]).norm(), 1e-12);
+  expect_error(replace_once(kLv, "epi_angle: -60", "epi_angle: -200"), {"test.yaml:10:", "fibers.rule.epi_angle"});
+  expect_error(replace_once(kLv, "{endo_angle: 60, epi_angle: -60}", "{inner: {node_set: base}, outer: {node_set: base}}"),
+               {"fibers", "in both sets"});
+}
+
+// fibers.file: one vector per element, or per node (interpolated sign-blind); counts and
+// bad vectors are refused with the file and line.
+TEST(Scene, FiberFilePerElementAndPerNode) {
+  const std::string dir = ::testing::TempDir();
+  const std::string yaml = replace_once(kLv, "rule: {endo_angle: 60, epi_angle: -60}", "file: fibers.txt");
+  const sc::Scene base = sc::parse_scene(kLv, "lv.yaml");
+  const int ne = base.model.mesh.num_elements(), nn = base.model.mesh.num_nodes();
+  auto write = [&](int count, const std::string& line, int bad_at = -1, const std::string& bad = "") {
+    std::ofstream f(dir + "/fibers.txt");
+    f << "# fibers\n";
+    for (int i = 0; i < count; ++i) f << (i == bad_at ? bad : line) << "\n";
+  };
+  write(ne, "0 0 2");
+  sc::Scene s = sc::parse_scene(yaml, dir + "/lv.yaml", dir);
+  for (const Vec3& f : s.model.fibers) EXPECT_LT((f - Vec3::UnitZ()).norm(), 1e-15);
+  write(nn, "0 -3 0");  // per node: every node the same axis, so every element too
+  s = sc::parse_scene(yaml, dir + "/lv.yaml", dir);
+  for (const Vec3& f : s.model.fibers) EXPECT_LT(core::fiber_angle_deg(f, Vec3::UnitY()), 1e-6);
+  write(ne - 1, "1 0 0");
+  expect_error_in(yaml, dir, {"fibers.file", "has " + std::to_string(ne - 1) + " vectors", std::to_string(ne) + " elements"});
+  write(ne, "1 0 0", 4, "0 0 0");
+  expect_error_in(yaml, dir, {"fibers.txt:6:", "zero vector (vector 4)"});
+  write(ne, "1 0 0", 2, "1 nan 0");
+  expect_error_in(yaml, dir, {"fibers.txt:4:"});
+  write(ne, "1 0 0", 2, "1 0");
+  expect_error_in(yaml, dir, {"fibers.txt:4:", "three numbers"});
+}
+
+// fibers.strokes: nodes near a stroke take its tangent; a single straight stroke makes a
+// uniform field along it (whatever direction it was drawn in).
+TEST(Scene, StrokesGiveTheirTangent) {
+  const std::string yaml = replace_once(kLv, "rule: {endo_angle: 60, epi_angle: -60}",
+                                        "strokes: {lines: [[[0.0, -0.02, -0.01], [0.0, 0.02, 0.01]]], radius: 0.004}");
+  const sc::Scene s = sc::parse_scene(yaml, "lv.yaml");
+  const Vec3 d = Vec3(0, 0.04, 0.02).normalized();
+  for (const Vec3& f : s.model.fibers) EXPECT_LT(core::fiber_angle_deg(f, d), 1e-6);
+  expect_error(replace_once(yaml, "radius: 0.004", "radius: 1.0e-9"), {"fibers.strokes", "no node lies within"});
+  expect_error(replace_once(yaml, "[0.0, 0.02, 0.01]", "[0.0, -0.02, -0.01]"), {"fibers.strokes.lines[0]", "two distinct"});
+}
+
+// contraction: keys reach core::Contraction; regions by name; pacing delays by distance.
+TEST(Scene, ContractionKeys) {
+  const std::string yaml = std::string(kLv) + R"(contraction:
+  peak_tension: 60.0e3
+  heart_rate: 75
+  twitch: {shape: sine, systole: 0.3}
+  pacing: {at: [0.0, 0.0, -0.02], speed: 0.5}
+)";
+  const sc::Scene s = sc::parse_scene(yaml, "lv.yaml");
+  const core::Contraction& c = s.model.contraction;
+  EXPECT_TRUE(c.enabled());
+  EXPECT_NEAR(c.period_s, 0.8, 1e-15);
+  EXPECT_EQ(c.twitch.shape, core::TwitchShape::sine);
+  EXPECT_EQ(c.region_peak_pa, std::vector<double>({60e3}));
+  ASSERT_EQ(c.element_delay_s.size(), static_cast<size_t>(s.model.mesh.num_elements()));
+  for (int e = 0; e < s.model.mesh.num_elements(); e += 97) {
+    Vec3 cen = Vec3::Zero();
+    for (int n : s.model.mesh.tets()[static_cast<size_t>(e)]) cen += 0.25 * s.model.mesh.rest_positions().col(n);
+    EXPECT_NEAR(c.element_delay_s[static_cast<size_t>(e)], (cen - Vec3(0, 0, -0.02)).norm() / 0.5, 1e-15);
+  }
+  const sc::Scene r = sc::parse_scene(replace_once(yaml, "peak_tension: 60.0e3", "regions: {myocardium: 5.0e3}"), "lv.yaml");
+  EXPECT_EQ(r.model.contraction.region_peak_pa, std::vector<double>({5e3}));
+  expect_error(replace_once(yaml, "peak_tension: 60.0e3", "regions: {scar: 1.0}"), {"contraction.regions.scar", "myocardium"});
+  expect_error(replace_once(yaml, "systole: 0.3", "systole: 2.0"), {"contraction.twitch.systole", "longer than the period"});
+  expect_error(replace_once(yaml, "heart_rate: 75", "heart_rate: 75\n  period: 1.0"), {"heart_rate or period"});
+  expect_error(replace_once(yaml, "speed: 0.5", "speed: 0"), {"contraction.pacing.speed"});
+  expect_error(replace_once(yaml, "{shape: sine, systole: 0.3}", "{tau1: 0.2, tau2: 0.1}"), {"contraction.twitch", "tau2_s"});
 }
