@@ -134,4 +134,24 @@ TEST(ShippedScenes, LandBeamConvergesTowardsThePublishedDeflectionFromBelow) {
   EXPECT_LT(fine, 4.19e-3);
 }
 
+// The beating ventricle (configs/scenes/lv-beat.yaml): no closed-form answer, so the test
+// checks what any contracting ventricle must do, each can fail independently: at peak
+// systole (t = 0.1 s: the twitch peaks 0.076 s after each element's activation, which
+// reaches the equator about 0.03 s after the apex) the endocardium at the equator moves
+// inwards and the apex towards the base, the wall thickens at the apex (the endocardial
+// apex moves further than the epicardial one), and the base-to-apex helix twists the
+// equator (a displacement along e_c); a beat later it is back at rest (the twitch has
+// decayed to 2e-3 of its peak by 0.8 s and the mass damping removes the motion).
+TEST(ShippedScenes, LvBeatContractsAndRelaxes) {
+  const json peak = run_scene("lv-beat.yaml", {"--until", "0.1"});
+  const json p_eq = probe(peak, "equator_endo")["displacement_m"], p_ae = probe(peak, "apex_endo")["displacement_m"],
+             p_ap = probe(peak, "apex_epi")["displacement_m"];
+  EXPECT_LT(p_eq[0].get<double>(), -0.05 * 0.007) << "the equator moves inwards by 5% of the radius at least";
+  EXPECT_GT(p_ae[2].get<double>(), 1e-4) << "the apex moves towards the base";
+  EXPECT_GT(p_ae[2].get<double>(), p_ap[2].get<double>()) << "the wall thickens at the apex";
+  EXPECT_GT(std::abs(p_eq[1].get<double>()), 0.1 * std::abs(p_eq[0].get<double>())) << "the equator twists";
+  const json rest = run_scene("lv-beat.yaml", {"--until", "0.8"});
+  EXPECT_LT(std::abs(probe(rest, "equator_endo")["displacement_m"][0].get<double>()), 0.05 * std::abs(p_eq[0].get<double>()));
+}
+
 }  // namespace
