@@ -1,0 +1,28 @@
+#pragma once
+/// @file Cavity volumes: the volume a part of the boundary (an endocardium) encloses, closed
+/// across its open rim (the base), for ejection fractions.
+
+#include "core/mesh.hpp"
+
+#include <vector>
+
+namespace fiberfem::core {
+
+/// The triangles of a cavity wall and the rim where it is open.
+struct CavitySurface {
+  std::vector<Tri> faces;                        ///< Boundary triangles, oriented out of the solid (into the cavity).
+  std::vector<std::pair<int, int>> rim_edges;    ///< Edges (u, v) used by one face only, as oriented in it.
+  std::vector<int> rim_nodes;                    ///< Nodes of the rim, sorted.
+};
+
+/// The boundary triangles whose three nodes all lie in `surface_nodes`, and their rim.
+/// @throws std::invalid_argument if no boundary triangle qualifies.
+CavitySurface cavity_surface(const TetMesh& mesh, const std::vector<int>& surface_nodes);
+
+/// Volume enclosed by the surface closed by a fan of triangles from the rim's centroid
+/// (positions `x`, 3 x N, metres): (1/6) sum of a . (b x c) over the closed, cavity-outward
+/// triangles, m^3. Positive for a cavity; exact for the polyhedron, invariant under rigid
+/// motions. A surface without a rim is closed already.
+double cavity_volume(const CavitySurface& surface, const Eigen::Ref<const Positions>& x);
+
+}  // namespace fiberfem::core
