@@ -541,7 +541,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
   }
   for (const std::string& o : overrides) apply_override(root, o);
-  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes", "contraction"});
+  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes", "contraction", "measure"});
 
   // Mesh, then the region of every element (first match wins).
   std::string mesh_file;
@@ -743,7 +743,26 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ": " + e.what());
   }
   std::string name = top.has("name") ? text(ctx, top["name"], "name") : origin;
-  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), {}, {}};
+  // Cavities: boundary parts (node selectors) whose enclosed volume is measured.
+  std::vector<CavityMeasure> cavities;
+  if (top.has("measure")) {
+    Map me(ctx, top["measure"], "measure", {"cavities"});
+    if (me.has("cavities")) {
+      const YAML::Node cv = me["cavities"];
+      if (!cv.IsMap()) ctx.fail(cv, "measure.cavities", "expected a mapping name: node selector");
+      for (const auto& kv : cv) {
+        const std::string cname = kv.first.as<std::string>();
+        const std::string path = "measure.cavities." + cname;
+        const std::vector<int> nodes = select_nodes(ctx, kv.second, path, model.mesh);
+        try {
+          cavities.push_back({cname, core::cavity_surface(model.mesh, nodes)});
+        } catch (const std::invalid_argument& e) {
+          ctx.fail(kv.second, path, e.what());
+        }
+      }
+    }
+  }
+  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), std::move(cavities), {}, {}};
   // The hash covers what determines the run: the scene as parsed (after overrides; comments
   // and layout do not count) and the bytes of its mesh file.
   YAML::Emitter canonical;

@@ -2,6 +2,7 @@
 /// @file Scene files (YAML, docs/scenes.md) parsed into the engine's model and settings.
 /// Outside core/ (STYLE.md habit 1): core never sees a file.
 
+#include "core/cavity.hpp"
 #include "core/model.hpp"
 #include "core/simulator.hpp"
 
@@ -31,6 +32,12 @@ struct Probe {
 
 enum class Mode { dynamic, static_ };
 
+/// A cavity whose volume is measured (scene key measure.cavities).
+struct CavityMeasure {
+  std::string name;
+  core::CavitySurface surface;
+};
+
 /// Everything a scene file describes.
 struct Scene {
   std::string name;
@@ -40,6 +47,7 @@ struct Scene {
   /// How long a dynamic run lasts (solver.until), s. Default 2.
   double until_s = 2.0;
   std::vector<Probe> probes;
+  std::vector<CavityMeasure> cavities;
   /// SHA-256 (hex) of the scene as parsed, after overrides (comments and layout do not
   /// count), followed by the bytes of its mesh file if it has one.
   std::string hash_sha256;

@@ -158,6 +158,29 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
     auto old_int = std::signal(SIGINT, on_stop_signal);
     auto old_term = std::signal(SIGTERM, on_stop_signal);
 
+    // Cavity volumes: at rest, then every step; per beat (the contraction's period, or the
+    // whole run) the largest and smallest give the ejection fraction.
+    struct CavityTrack {
+      double rest = 0, min = HUGE_VAL, max = -HUGE_VAL, beat_min = HUGE_VAL, beat_max = -HUGE_VAL;
+      json beats = json::array();
+    };
+    std::vector<CavityTrack> cav(sc.cavities.size());
+    for (size_t k = 0; k < cav.size(); ++k) cav[k].rest = core::cavity_volume(sc.cavities[k].surface, sim.positions());
+    const double beat_period = model.contraction.enabled() ? model.contraction.period_s : HUGE_VAL;
+    long current_beat = 0;
+    auto close_beat = [&](long beat) {
+      for (auto& c : cav) {
+        if (c.beat_max < 0) continue;
+        const bool complete = beat_period < HUGE_VAL && (beat + 1) * beat_period <= sim.time_s() + 0.5 * sc.settings.dt_s;
+        c.beats.push_back({{"beat", beat},
+                           {"complete", complete},
+                           {"end_diastolic_m3", c.beat_max},
+                           {"end_systolic_m3", c.beat_min},
+                           {"ejection_fraction", (c.beat_max - c.beat_min) / c.beat_max}});
+        c.beat_min = HUGE_VAL;
+        c.beat_max = -HUGE_VAL;
+      }
+    };
     std::vector<double> step_s;
     step_s.reserve(static_cast<size_t>(std::min(steps, 1 << 20)));
     core::PhaseTimes total;
@@ -180,6 +203,16 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       }
       done = s;
       step_s.push_back(r.time.total_s);
+      if (!cav.empty()) {
+        const long beat = static_cast<long>(std::floor((sim.time_s() - 1e-9) / beat_period));
+        if (beat != current_beat) close_beat(current_beat), current_beat = beat;
+        for (size_t k = 0; k < cav.size(); ++k) {
+          const double v = core::cavity_volume(sc.cavities[k].surface, sim.positions());
+          CavityTrack& c = cav[k];
+          c.min = std::min(c.min, v), c.max = std::max(c.max, v);
+          c.beat_min = std::min(c.beat_min, v), c.beat_max = std::max(c.beat_max, v);
+        }
+      }
       total.rotations_s += r.time.rotations_s;
       total.assembly_s += r.time.assembly_s;
       total.solve_s += r.time.solve_s;
@@ -255,6 +288,24 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                           {"max_kinetic_j", std::max(max_kinetic, e1.kinetic_j)}};
     report["state"] = {{"max_speed_m_s", max_speed}, {"max_inverted_elements", max_inverted}};
     report["probes"] = probes_json(sc, sim.positions());
+    if (!cav.empty()) {
+      close_beat(current_beat);
+      json cj = json::array();
+      for (size_t k = 0; k < cav.size(); ++k) {
+        const CavityTrack& c = cav[k];
+        const double ef = c.max > 0 ? (c.max - c.min) / c.max : 0.0;
+        std::snprintf(line, sizeof line, "cavity %s: rest %.4g mL, %.4g to %.4g mL over the run, ejection fraction %.3f\n",
+                      sc.cavities[k].name.c_str(), 1e6 * c.rest, 1e6 * c.min, 1e6 * c.max, ef);
+        out << line;
+        cj.push_back({{"name", sc.cavities[k].name},
+                      {"rest_m3", c.rest},
+                      {"min_m3", c.min},
+                      {"max_m3", c.max},
+                      {"ejection_fraction", ef},
+                      {"beats", c.beats}});
+      }
+      report["cavities"] = cj;
+    }
     rc = status == "completed" ? 0 : 1;
 
     if (o.compare_static && rc == 0) {

@@ -425,3 +425,14 @@ TEST(Scene, ContractionKeys) {
   expect_error(replace_once(yaml, "speed: 0.5", "speed: 0"), {"contraction.pacing.speed"});
   expect_error(replace_once(yaml, "{shape: sine, systole: 0.3}", "{tau1: 0.2, tau2: 0.1}"), {"contraction.twitch", "tau2_s"});
 }
+
+// measure.cavities: named boundary parts whose enclosed volume the run reports.
+TEST(Scene, MeasureCavities) {
+  const std::string yaml = std::string(kLv) + "measure:\n  cavities:\n    lv: {node_set: endo}\n";
+  const sc::Scene s = sc::parse_scene(yaml, "lv.yaml");
+  ASSERT_EQ(s.cavities.size(), 1u);
+  EXPECT_EQ(s.cavities[0].name, "lv");
+  EXPECT_EQ(s.cavities[0].surface.rim_nodes.size(), 18u);  // the endocardial base ring
+  expect_error(replace_once(yaml, "{node_set: endo}", "{node_set: apex_endo}"), {"measure.cavities.lv", "no boundary triangle"});
+  expect_error(replace_once(yaml, "{node_set: endo}", "{node_set: heart}"), {"measure.cavities.lv.node_set", "no node set 'heart'"});
+}
