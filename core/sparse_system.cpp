@@ -69,8 +69,45 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
             scatter_[e * 144 + static_cast<size_t>((3 * b + d) * 12 + 3 * a + c)] = value_index(r, col);
           }
 
-  // Greedy colouring of chunks of consecutive elements: a chunk takes the lowest colour
-  // not used by any chunk sharing one of its nodes. Colours beyond 63 share one serial bucket.
+  // Chunks of consecutive elements, coloured so that no two chunks of a colour share a
+  // node. The mesh's own element order is kept when it is local (the box generator's,
+  // cell by cell, which also follows its node numbering); an order that scatters chunks
+  // over the body (a mesh generator's Delaunay order: measured 33 ms instead of 1.5 ms to
+  // assemble a 7,105-tet heart, nearly every chunk in its own colour) is replaced by the
+  // Morton order of the element centroids.
+  const int ne = static_cast<int>(tets_.size());
+  order_.resize(static_cast<size_t>(ne));
+  for (int e = 0; e < ne; ++e) order_[static_cast<size_t>(e)] = e;
+  colour_chunks(n);
+  if (colour_chunks_.size() > 16) {
+    const auto [lo, hi] = mesh.bounding_box();
+    const Vec3 span = (hi - lo).cwiseMax(1e-300);
+    auto spread = [](std::uint64_t v) {  // 21 bits -> every third of 63
+      v &= 0x1fffff;
+      v = (v | v << 32) & 0x1f00000000ffffULL;
+      v = (v | v << 16) & 0x1f0000ff0000ffULL;
+      v = (v | v << 8) & 0x100f00f00f00f00fULL;
+      v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+      v = (v | v << 2) & 0x1249249249249249ULL;
+      return v;
+    };
+    std::vector<std::uint64_t> key(static_cast<size_t>(ne));
+    for (int e = 0; e < ne; ++e) {
+      Vec3 c = Vec3::Zero();
+      for (int v : tets_[static_cast<size_t>(e)]) c += 0.25 * mesh.rest_positions().col(v);
+      const Vec3 q = ((c - lo).array() / span.array()).cwiseMax(0.0).cwiseMin(1.0) * 2097151.0;
+      key[static_cast<size_t>(e)] = spread(static_cast<std::uint64_t>(q.x())) | spread(static_cast<std::uint64_t>(q.y())) << 1 |
+                                    spread(static_cast<std::uint64_t>(q.z())) << 2;
+    }
+    std::stable_sort(order_.begin(), order_.end(),
+                     [&](int a, int b) { return key[static_cast<size_t>(a)] < key[static_cast<size_t>(b)]; });
+    colour_chunks(n);
+  }
+}
+
+void SparseSystem::colour_chunks(int n) {
+  // Greedy: a chunk takes the lowest colour not used by any chunk sharing one of its
+  // nodes. Chunks that find none of 64 colours run one at a time, each its own colour.
   const int ne = static_cast<int>(tets_.size());
   const int num_chunks = (ne + chunk_size_ - 1) / chunk_size_;
   std::vector<std::uint64_t> node_colours(static_cast<size_t>(n), 0);
@@ -79,8 +116,8 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   for (int ch = 0; ch < num_chunks; ++ch) {
     std::uint64_t used = 0;
     const int begin = ch * chunk_size_, end = std::min(begin + chunk_size_, ne);
-    for (int e = begin; e < end; ++e)
-      for (int v : tets_[static_cast<size_t>(e)]) used |= node_colours[static_cast<size_t>(v)];
+    for (int k = begin; k < end; ++k)
+      for (int v : tets_[static_cast<size_t>(order_[static_cast<size_t>(k)])]) used |= node_colours[static_cast<size_t>(v)];
     int colour = 0;
     while (colour < 64 && (used >> colour) & 1u) ++colour;
     if (colour == 64) {
@@ -89,8 +126,9 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
       continue;
     }
     chunk_colour[static_cast<size_t>(ch)] = colour;
-    for (int e = begin; e < end; ++e)
-      for (int v : tets_[static_cast<size_t>(e)]) node_colours[static_cast<size_t>(v)] |= (std::uint64_t{1} << colour);
+    for (int k = begin; k < end; ++k)
+      for (int v : tets_[static_cast<size_t>(order_[static_cast<size_t>(k)])])
+        node_colours[static_cast<size_t>(v)] |= (std::uint64_t{1} << colour);
   }
   int num_colours = 0;
   for (int c : chunk_colour) num_colours = std::max(num_colours, c + 1);
@@ -98,7 +136,6 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   for (int ch = 0; ch < num_chunks; ++ch)
     if (chunk_colour[static_cast<size_t>(ch)] >= 0)
       colour_chunks_[static_cast<size_t>(chunk_colour[static_cast<size_t>(ch)])].push_back(ch);
-  // Chunks that found no colour run one at a time: each as its own single-chunk colour.
   if (serial_bucket_used)
     for (int ch = 0; ch < num_chunks; ++ch)
       if (chunk_colour[static_cast<size_t>(ch)] < 0) colour_chunks_.push_back({ch});

@@ -59,6 +59,8 @@ class SparseSystem {
   int num_free_ = 0;
   std::vector<int> free_index_;
   std::vector<Tet> tets_;
+  std::vector<int> order_;  // elements in chunk order (the mesh's, or Morton order of centroids)
+  void colour_chunks(int num_nodes);
   SparseMatrix A_;
   std::vector<int> diag_;
   std::vector<int> scatter_;  // 144 per element: value index or -1
@@ -75,7 +77,7 @@ void SparseSystem::for_each_element_coloured(Kernel&& kernel) const {
     for (int ci = 0; ci < nc; ++ci) {
       const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
       const int end = std::min(begin + chunk_size_, ne);
-      for (int e = begin; e < end; ++e) kernel(e);
+      for (int k = begin; k < end; ++k) kernel(order_[static_cast<size_t>(k)]);
     }
   }
 }

@@ -172,4 +172,27 @@ TEST(ShippedScenes, LvBeatContractsAndRelaxes) {
   EXPECT_LT(std::abs(probe(rest, "equator_endo")["displacement_m"][0].get<double>()), 0.05 * std::abs(p_eq[0].get<double>()));
 }
 
+// The default heart (configs/scenes/heart.yaml on meshes/biventricle.msh): the LV cavity
+// at rest is the truncated endocardial ellipsoid of scripts/make_biventricle.py
+// (rs 0.015, rl 0.038, base z = 0.012: 26.11 mL) less the faceting of a 4 mm mesh (the
+// inscribed polyhedron: about 1%, bound 3%); both ventricles eject within the
+// physiological 0.3 to 0.7 the scene is tuned for, in two identical beats.
+TEST(ShippedScenes, HeartBeatsWithPhysiologicalEjectionFractions) {
+  const json r = run_scene("heart.yaml");
+  ASSERT_EQ(r["cavities"].size(), 2u);
+  const double pi = 3.14159265358979323846, rs = 0.015, rl = 0.038, b = 0.012;
+  const double lv_exact = pi * rs * rs * ((b + rl) - (b * b * b + rl * rl * rl) / (3 * rl * rl));
+  for (const json& c : r["cavities"]) {
+    if (c["name"] == "lv") {
+      EXPECT_LT(c["rest_m3"].get<double>(), lv_exact);
+      EXPECT_GT(c["rest_m3"].get<double>(), 0.97 * lv_exact);
+    }
+    ASSERT_GE(c["beats"].size(), 2u);
+    const double ef0 = c["beats"][0]["ejection_fraction"].get<double>(), ef1 = c["beats"][1]["ejection_fraction"].get<double>();
+    EXPECT_NEAR(ef0, ef1, 0.01) << c["name"];
+    EXPECT_GT(ef1, 0.3) << c["name"];
+    EXPECT_LT(ef1, 0.7) << c["name"];
+  }
+}
+
 }  // namespace
