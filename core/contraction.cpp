@@ -57,6 +57,22 @@ double Contraction::tension(int region, double delay_s, double t_s) const {
   return peak * v;
 }
 
+TwitchTable Contraction::tabulate(int samples) const {
+  TwitchTable t;
+  t.period_s = period_s;
+  t.samples.resize(static_cast<size_t>(samples) + 1);
+  t.tail.resize(static_cast<size_t>(samples) + 1);
+  for (int k = 0; k <= samples; ++k) {
+    const double phase = period_s * k / samples;
+    t.tail[static_cast<size_t>(k)] = twitch.value(phase + period_s);
+    t.samples[static_cast<size_t>(k)] = twitch.value(phase) + t.tail[static_cast<size_t>(k)];
+  }
+  // Periodic: the value at the period's end is the next beat's start.
+  t.samples.back() = t.samples.front();
+  t.tail.back() = twitch.value(2 * period_s);
+  return t;
+}
+
 void Contraction::validate(int num_regions, int num_elements) const {
   if (!(period_s > 0 && std::isfinite(period_s))) throw std::invalid_argument("contraction: period_s must be > 0");
   twitch.validate();

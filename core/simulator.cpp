@@ -89,6 +89,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   if (model_.contraction.enabled()) {  // per-step tensions come from the schedule
     caches_.build_active(model_);
     active_.assign(static_cast<size_t>(ne), 0.0);
+    tension_table_ = model_.contraction.tabulate();
   }
   reset();
 }
@@ -221,19 +222,26 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   t0 = Clock::now();
   const Contraction& con = model_.contraction;
   if (con.enabled()) {
-    // The tension at the end of the (sub)step, as backward Euler evaluates forces there.
+    // The tension at the end of the (sub)step, as backward Euler evaluates forces there,
+    // from the tabulated beat (Contraction::tabulate).
     const double t_end = time_s_ + h;
     const auto& regions = model_.mesh.regions();
+    const bool delays = !con.element_delay_s.empty();
+    const double shared = tension_table_.value(t_end);
+#pragma omp parallel for schedule(static)
     for (int e = 0; e < ne; ++e) {
       const size_t i = static_cast<size_t>(e);
-      active_[i] = con.tension(regions[i], con.element_delay_s.empty() ? 0.0 : con.element_delay_s[i], t_end);
+      const double peak = con.region_peak_pa[static_cast<size_t>(regions[i])];
+      active_[i] = peak * (delays ? tension_table_.value(t_end - con.element_delay_s[i]) : shared);
     }
   }
   const bool rest_frame_active = con.enabled() && con.mode == ContractionMode::nodal_forces;
   sys_.zero_matrix();
   f_.setZero(sys_.num_dofs());
   const bool active = !active_.empty();
-  if (active) f_active_.setZero(sys_.num_dofs());
+  // The active forces' own vector is needed only for the energy check's work balance.
+  const bool track_active_work = active && settings_.max_energy_gain < std::numeric_limits<double>::infinity();
+  if (track_active_work) f_active_.setZero(sys_.num_dofs());
   sys_.assemble(
       [&](int e, Mat12& Ke, Vec12& fe) {
         const size_t i = static_cast<size_t>(e);
@@ -246,14 +254,16 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
         Vec12 floc = -Ku;
         if (active && !rest_frame_active) {
           floc -= active_[i] * caches_.g[i];
-          for (int a = 0; a < 4; ++a)
-            f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * (R * caches_.g[i].segment<3>(3 * a));
+          if (track_active_work)
+            for (int a = 0; a < 4; ++a)
+              f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * (R * caches_.g[i].segment<3>(3 * a));
         }
         for (int a = 0; a < 4; ++a) fe.segment<3>(3 * a) = R * floc.segment<3>(3 * a);
         if (active && rest_frame_active) {  // the paper's forces along the rest fibers
           fe -= active_[i] * caches_.g[i];
-          for (int a = 0; a < 4; ++a)
-            f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * caches_.g[i].segment<3>(3 * a);
+          if (track_active_work)
+            for (int a = 0; a < 4; ++a)
+              f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * caches_.g[i].segment<3>(3 * a);
         }
         const double c = h * beta_e_[i] + h * h;
         for (int a = 0; a < 4; ++a)

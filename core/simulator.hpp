@@ -155,6 +155,7 @@ class Simulator {
   Eigen::VectorXd mass_alpha_;      // per node, sum alpha_e m_e / 4, kg/s
   Eigen::VectorXd f_ext_;           // 3N
   std::vector<double> active_;      // per element tension, Pa (empty: off)
+  TwitchTable tension_table_;       // the contraction's normalised beat, tabulated
   Eigen::VectorXd x_, v_;           // 3N
   std::vector<Mat3> R_;
   std::vector<Eigen::Quaterniond> q_;
