@@ -76,6 +76,12 @@ TwitchTable Contraction::tabulate(int samples) const {
 void Contraction::validate(int num_regions, int num_elements) const {
   if (!(period_s > 0 && std::isfinite(period_s))) throw std::invalid_argument("contraction: period_s must be > 0");
   twitch.validate();
+  // A beat adds to the next one (its tail), not to the one after: the twitch must have
+  // decayed within two periods.
+  if (twitch.value(2 * period_s) > 1e-4)
+    throw std::invalid_argument("contraction: the twitch is still " + std::to_string(twitch.value(2 * period_s)) +
+                                " of its peak two periods (" + std::to_string(2 * period_s) +
+                                " s) after it starts: lengthen period_s or shorten tau2_s");
   if (!region_peak_pa.empty() && static_cast<int>(region_peak_pa.size()) != num_regions)
     throw std::invalid_argument("contraction: region_peak_pa has " + std::to_string(region_peak_pa.size()) +
                                 " entries for " + std::to_string(num_regions) + " regions");

@@ -81,6 +81,8 @@ struct Contraction {
   double tension(int region, double delay_s, double t_s) const;
   /// The normalised beat (tension / peak as a function of time since activation), sampled.
   TwitchTable tabulate(int samples = 4096) const;
+  /// Also refuses a twitch that has not decayed to 1e-4 of its peak two periods after it
+  /// starts (each beat carries only the previous beat's tail).
   /// @param num_regions, num_elements sizes to check against.
   /// @throws std::invalid_argument naming the field and index.
   void validate(int num_regions, int num_elements) const;

@@ -25,6 +25,25 @@ Eigen::MatrixXd harmonic_extension(const TetMesh& mesh, const std::vector<int>& 
   int nf = 0;
   for (int i = 0; i < n; ++i)
     if (!is_held[static_cast<size_t>(i)]) index[static_cast<size_t>(i)] = nf++;
+  // Every free node must connect to a held one through elements, or its value is
+  // undetermined (a singular system the factorisation may not notice).
+  {
+    std::vector<std::vector<int>> adj(static_cast<size_t>(n));
+    for (const Tet& t : mesh.tets())
+      for (int a : t)
+        for (int b : t)
+          if (a != b) adj[static_cast<size_t>(a)].push_back(b);
+    std::vector<char> seen(static_cast<size_t>(n), 0);
+    std::vector<int> queue(held.begin(), held.end());
+    for (int v : held) seen[static_cast<size_t>(v)] = 1;
+    for (size_t q = 0; q < queue.size(); ++q)
+      for (int w : adj[static_cast<size_t>(queue[q])])
+        if (!seen[static_cast<size_t>(w)]) seen[static_cast<size_t>(w)] = 1, queue.push_back(w);
+    const long unreached = std::count(seen.begin(), seen.end(), 0);
+    if (unreached > 0)
+      throw std::invalid_argument("laplace: " + std::to_string(unreached) +
+                                  " nodes are not connected to any held node (a separate piece of the mesh?)");
+  }
   Eigen::MatrixXd values = Eigen::MatrixXd::Zero(n, held_values.cols());
   for (size_t k = 0; k < held.size(); ++k) values.row(held[k]) = held_values.row(static_cast<Eigen::Index>(k));
   if (nf == 0) return values;

@@ -26,6 +26,14 @@ const char* to_string(PreconditionerKind k) {
 
 const char* to_string(LinearSolverKind k) { return k == LinearSolverKind::pcg ? "pcg" : "direct"; }
 
+bool has_cholmod() {
+#ifdef FIBERFEM_HAVE_CHOLMOD
+  return true;
+#else
+  return false;
+#endif
+}
+
 void SolverSettings::validate() const {
   if (refresh_iterations < 1)
     throw std::invalid_argument("solver: refresh_iterations must be >= 1, got " + std::to_string(refresh_iterations));

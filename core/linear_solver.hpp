@@ -45,7 +45,8 @@ struct SolverSettings {
   int max_iterations = 500;   ///< PCG iteration cap, >= 1. Default 500.
   bool warm_start = true;     ///< PCG starts from the last velocity. Default true.
   /// With warm_start: the initial guess is the best combination (Galerkin projection, the
-  /// least A-norm error) of the given guess and the last `recycled_solutions` solutions,
+  /// least A-norm error) of the last `recycled_solutions` solutions (the given guess is
+  /// used only before there are any),
   /// which costs one pass over A for all of them; 0 keeps the given guess. In [0, 64].
   /// Default 8 (halves PCG iterations on the cantilever benchmark, docs/performance.md).
   int recycled_solutions = 8;
@@ -55,6 +56,10 @@ struct SolverSettings {
   /// @throws std::invalid_argument naming the field.
   void validate() const;
 };
+
+/// Whether the engine was built with CHOLMOD (the supernodal factor, its single-precision
+/// copy, UMFPACK for the static solver); without it Eigen's simplicial solvers stand in.
+bool has_cholmod();
 
 /// Result of one solve.
 struct SolveStats {

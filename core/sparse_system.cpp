@@ -80,6 +80,8 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   for (int e = 0; e < ne; ++e) order_[static_cast<size_t>(e)] = e;
   colour_chunks(n);
   if (colour_chunks_.size() > 16) {
+    const std::vector<int> natural_order = order_;
+    const auto natural_chunks = colour_chunks_;
     const auto [lo, hi] = mesh.bounding_box();
     const Vec3 span = (hi - lo).cwiseMax(1e-300);
     auto spread = [](std::uint64_t v) {  // 21 bits -> every third of 63
@@ -102,6 +104,10 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
     std::stable_sort(order_.begin(), order_.end(),
                      [&](int a, int b) { return key[static_cast<size_t>(a)] < key[static_cast<size_t>(b)]; });
     colour_chunks(n);
+    if (colour_chunks_.size() >= natural_chunks.size()) {  // keep whichever needs fewer colours
+      order_ = natural_order;
+      colour_chunks_ = natural_chunks;
+    }
   }
 }
 

@@ -222,7 +222,7 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
         const long type = f[1], ntags = f[2];
         static const std::map<long, int> kNodes = {{15, 1}, {1, 2}, {2, 3}, {4, 4}};
         const auto it = kNodes.find(type);
-        if (ntags < 0 || static_cast<long>(f.size()) < 3 + ntags) lines.fail("bad tag count");
+        if (ntags < 0 || ntags > static_cast<long>(f.size()) - 3) lines.fail("bad tag count");
         if (it == kNodes.end()) {
           if (type == 11 || type == 5 || type == 3)
             lines.fail("element type " + std::to_string(type) + " is not a linear tetrahedron (use first-order meshes)");
@@ -475,21 +475,30 @@ core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale
           t.next("array name");
           const long comps = t.number<long>("component count");
           const long tuples = t.number<long>("tuple count");
-          t.next("data type");
+          // Counts bounded before multiplying (and by what the file can still hold).
+          if (comps < 0 || tuples < 0 || comps > 1000000 || tuples > static_cast<long>(t.remaining()))
+            t.fail("bad FIELD array size " + std::to_string(comps) + " x " + std::to_string(tuples));
+          const std::string type = t.next("data type");
+          // Only an integer array can hold region tags.
+          const bool integer_type = type.find("int") != std::string::npos || type.find("long") != std::string::npos ||
+                                    type.find("short") != std::string::npos || type.find("char") != std::string::npos;
           std::vector<long> values;
           for (long i = 0; i < comps * tuples; ++i) {
             const double v = t.number<double>("cell value");
             // Only a one-component array can be the region tags; others hold any number.
-            values.push_back(tags.empty() && comps == 1 ? whole(t, v, "the region tag (non-negative)", 0, kIntMax) : 0);
+            values.push_back(tags.empty() && comps == 1 && integer_type ? whole(t, v, "the region tag (non-negative)", 0, kIntMax) : 0);
           }
-          if (tags.empty() && comps == 1 && tuples == n) tags = std::move(values);
+          if (tags.empty() && comps == 1 && integer_type && tuples == n) tags = std::move(values);
         }
         continue;
       }
       while (!t.done() && t.peek() == "SCALARS") {
         t.next("SCALARS");
         t.next("array name");
-        t.next("data type");
+        const std::string type = t.next("data type");
+        const bool integer_type = type.find("int") != std::string::npos || type.find("long") != std::string::npos ||
+                                  type.find("short") != std::string::npos || type.find("char") != std::string::npos;
+        const bool take = tags.empty() && integer_type;  // region tags: the first integer array
         std::string tok = t.next("LOOKUP_TABLE or component count");
         if (tok != "LOOKUP_TABLE") tok = t.next("LOOKUP_TABLE");
         if (tok != "LOOKUP_TABLE") t.fail("expected LOOKUP_TABLE");
@@ -497,9 +506,9 @@ core::TetMesh read_vtk(std::istream& in, const std::string& origin, double scale
         std::vector<long> values;
         for (long i = 0; i < n; ++i) {
           const double v = t.number<double>("cell value");
-          values.push_back(tags.empty() ? whole(t, v, "the region tag (non-negative)", 0, kIntMax) : 0);
+          values.push_back(take ? whole(t, v, "the region tag (non-negative)", 0, kIntMax) : 0);
         }
-        if (tags.empty()) tags = std::move(values);
+        if (take) tags = std::move(values);
       }
     } else if (key == "POINT_DATA") {
       // Point arrays are not used: skip the rest of the file section by section.

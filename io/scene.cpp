@@ -363,7 +363,8 @@ std::string resolve(const std::string& path, const std::string& base_dir) {
 }
 
 // fibers: uniform | rule | strokes | file (docs/scenes.md, docs/fiber-format.md).
-std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::TetMesh& mesh, const std::string& base_dir) {
+std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::TetMesh& mesh, const std::string& base_dir,
+                         std::vector<std::string>& files_read) {
   Map f(ctx, node, "fibers", {"uniform", "strokes", "rule", "file"});
   int kinds = 0;
   for (const char* k : {"uniform", "strokes", "rule", "file"}) kinds += f.has(k) ? 1 : 0;
@@ -408,6 +409,7 @@ std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::Tet
       }
       if (st.has("file")) {
         const std::string path = resolve(text(ctx, st["file"], "fibers.strokes.file"), base_dir);
+        files_read.push_back(path);
         std::ifstream in(path);
         if (!in) ctx.fail(st["file"], "fibers.strokes.file", "cannot open " + path);
         auto more = read_polylines(in, path);
@@ -450,10 +452,10 @@ std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::Tet
     }
     // file: one vector per element, or per node (then interpolated sign-blind).
     const std::string path = resolve(text(ctx, f["file"], "fibers.file"), base_dir);
+    files_read.push_back(path);
     std::ifstream in(path);
     if (!in) ctx.fail(f["file"], "fibers.file", "cannot open " + path);
-    std::vector<int> line_of;
-    const std::vector<Vec3> v = read_fiber_vectors(in, path, &line_of);
+    const std::vector<Vec3> v = read_fiber_vectors(in, path);
     if (v.size() == ne) {
       std::vector<Vec3> out(ne);
       for (size_t e = 0; e < ne; ++e) out[e] = v[e].normalized();
@@ -508,9 +510,9 @@ core::Contraction contraction(const Ctx& ctx, const YAML::Node& node, const core
   con.region_peak_pa.assign(static_cast<size_t>(mesh.num_regions()), peak);
   if (c.has("regions")) {
     const YAML::Node r = c["regions"];
-    if (!r.IsMap()) ctx.fail(r, "contraction.regions", "expected a mapping region name: peak tension (Pa)");
+    if (!r.IsMap() || r.size() == 0) ctx.fail(r, "contraction.regions", "expected a non-empty mapping region name: peak tension (Pa)");
     for (const auto& kv : r) {
-      const std::string name = kv.first.as<std::string>();
+      const std::string name = text(ctx, kv.first, "contraction.regions");
       const auto it = std::find(region_names.begin(), region_names.end(), name);
       if (it == region_names.end())
         ctx.fail(kv.first, "contraction.regions." + name, "no region of that name (regions: " + join(region_names) + ")");
@@ -559,7 +561,9 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     const std::string path = "regions[" + std::to_string(r) + "]";
     Map reg(ctx, regions[r], path, {"name", "select", "material", "damping"});
     if (!reg.has("material")) ctx.fail(regions[r], path, "needs a material");
-    region_names.push_back(reg.has("name") ? text(ctx, reg["name"], reg.sub("name")) : "region" + std::to_string(r));
+    region_names.push_back(reg.has("name") ? text(ctx, reg["name"], reg.sub("name")) : "regions[" + std::to_string(r) + "]");
+    if (std::count(region_names.begin(), region_names.end(), region_names.back()) > 1)
+      ctx.fail(reg["name"], reg.sub("name"), "'" + region_names.back() + "' names an earlier region too");
     materials.push_back(material(ctx, reg["material"], reg.sub("material")));
     core::RayleighDamping d;
     if (reg.has("damping")) {
@@ -609,7 +613,8 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
 
   // Fibers.
   model.set_uniform_fiber(Vec3::UnitX());
-  if (top.has("fibers")) model.fibers = fibers(ctx, top["fibers"], model.mesh, base_dir);
+  std::vector<std::string> files_read;  // besides the mesh: fiber and stroke files (hashed)
+  if (top.has("fibers")) model.fibers = fibers(ctx, top["fibers"], model.mesh, base_dir, files_read);
 
   if (top.has("contraction")) model.contraction = contraction(ctx, top["contraction"], model.mesh, region_names);
 
@@ -751,7 +756,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
       const YAML::Node cv = me["cavities"];
       if (!cv.IsMap()) ctx.fail(cv, "measure.cavities", "expected a mapping name: node selector");
       for (const auto& kv : cv) {
-        const std::string cname = kv.first.as<std::string>();
+        const std::string cname = text(ctx, kv.first, "measure.cavities");
         const std::string path = "measure.cavities." + cname;
         const std::vector<int> nodes = select_nodes(ctx, kv.second, path, model.mesh);
         try {
@@ -759,20 +764,26 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
         } catch (const std::invalid_argument& e) {
           ctx.fail(kv.second, path, e.what());
         }
+        const double v = core::cavity_volume(cavities.back().surface, model.mesh.rest_positions());
+        if (!(v > 0))
+          ctx.fail(kv.second, path,
+                   "encloses a volume of " + std::to_string(v) + " m^3 at rest: select the cavity's own wall (an endocardium)");
       }
     }
   }
   Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), std::move(cavities), {}, {}};
   // The hash covers what determines the run: the scene as parsed (after overrides; comments
-  // and layout do not count) and the bytes of its mesh file.
+  // and layout do not count) and the bytes of the files it reads (mesh, fibers, strokes).
   YAML::Emitter canonical;
   canonical << root;
   std::string hashed = canonical.c_str();
-  if (!mesh_file.empty()) {
-    std::ifstream mf(mesh_file, std::ios::binary);
+  std::vector<std::string> hashed_files = files_read;
+  if (!mesh_file.empty()) hashed_files.insert(hashed_files.begin(), mesh_file);
+  for (const std::string& file : hashed_files) {
+    std::ifstream mf(file, std::ios::binary);
     std::stringstream bytes;
     bytes << mf.rdbuf();
-    hashed += "\n--- mesh file ---\n" + bytes.str();
+    hashed += "\n--- " + file.substr(file.rfind('/') + 1) + " ---\n" + bytes.str();
   }
   scene.hash_sha256 = sha256_hex(hashed);
   scene.mesh_file = mesh_file;

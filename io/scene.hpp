@@ -49,7 +49,7 @@ struct Scene {
   std::vector<Probe> probes;
   std::vector<CavityMeasure> cavities;
   /// SHA-256 (hex) of the scene as parsed, after overrides (comments and layout do not
-  /// count), followed by the bytes of its mesh file if it has one.
+  /// count), followed by the bytes of the files it reads (mesh, fiber, stroke files).
   std::string hash_sha256;
   /// The mesh file read (path as opened), or empty for a generator.
   std::string mesh_file;

@@ -128,6 +128,9 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
   int rc = 0;
 
   if (is_static) {
+    if (model.contraction.enabled())
+      out << "static: note: the static solve has no active stress; the contraction is left out (passive equilibrium)\n";
+    if (!sc.cavities.empty()) out << "static: note: cavity volumes are reported by dynamic runs only\n";
     core::Positions x;
     const core::StaticReport r = solve_static(sc, x);
     const double wall = seconds_since(t0);
@@ -157,30 +160,52 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
     const int steps = static_cast<int>(wanted);
     const core::Energies e0 = sim.energies();
     g_stop_signal = 0;
-    auto old_int = std::signal(SIGINT, on_stop_signal);
-    auto old_term = std::signal(SIGTERM, on_stop_signal);
+    // Handlers for the loop, restored however it ends (a step can throw).
+    struct SignalGuard {
+      void (*old_int)(int), (*old_term)(int);
+      SignalGuard() : old_int(std::signal(SIGINT, on_stop_signal)), old_term(std::signal(SIGTERM, on_stop_signal)) {}
+      ~SignalGuard() {
+        std::signal(SIGINT, old_int);
+        std::signal(SIGTERM, old_term);
+      }
+    } signal_guard;
 
-    // Cavity volumes: at rest, then every step; per beat (the contraction's period, or the
-    // whole run) the largest and smallest give the ejection fraction.
+    // Per-beat extremes. A beat is the contraction's period (the whole run without one);
+    // the state at a beat's boundary belongs to both beats, and beat 0 starts from rest.
+    const double beat_period = model.contraction.enabled() ? model.contraction.period_s : HUGE_VAL;
+    const double dt = sc.settings.dt_s;
+    auto beat_of = [&](double t) { return beat_period < HUGE_VAL ? static_cast<long>(std::floor((t - 0.5 * dt) / beat_period)) : 0L; };
+    struct Range {
+      double min = HUGE_VAL, max = -HUGE_VAL;
+      long count = 0;
+      void add(double v) { min = std::min(min, v), max = std::max(max, v), ++count; }
+    };
+    // Cavity volumes: at rest, then every step; per beat the largest and smallest give the
+    // ejection fraction.
     struct CavityTrack {
-      double rest = 0, min = HUGE_VAL, max = -HUGE_VAL, beat_min = HUGE_VAL, beat_max = -HUGE_VAL;
+      double rest = 0, last = 0;
+      Range run, beat;
       json beats = json::array();
     };
     std::vector<CavityTrack> cav(sc.cavities.size());
-    for (size_t k = 0; k < cav.size(); ++k) cav[k].rest = core::cavity_volume(sc.cavities[k].surface, sim.positions());
-    const double beat_period = model.contraction.enabled() ? model.contraction.period_s : HUGE_VAL;
+    for (size_t k = 0; k < cav.size(); ++k) {
+      CavityTrack& c = cav[k];
+      c.rest = c.last = core::cavity_volume(sc.cavities[k].surface, sim.positions());
+      c.run.add(c.rest);
+      c.beat.add(c.rest);
+    }
     long current_beat = 0;
+    auto complete = [&](long beat) { return beat_period < HUGE_VAL && (beat + 1) * beat_period <= sim.time_s() + 0.5 * dt; };
     auto close_beat = [&](long beat) {
       for (auto& c : cav) {
-        if (c.beat_max < 0) continue;
-        const bool complete = beat_period < HUGE_VAL && (beat + 1) * beat_period <= sim.time_s() + 0.5 * sc.settings.dt_s;
+        if (c.beat.count == 0) continue;
         c.beats.push_back({{"beat", beat},
-                           {"complete", complete},
-                           {"end_diastolic_m3", c.beat_max},
-                           {"end_systolic_m3", c.beat_min},
-                           {"ejection_fraction", (c.beat_max - c.beat_min) / c.beat_max}});
-        c.beat_min = HUGE_VAL;
-        c.beat_max = -HUGE_VAL;
+                           {"complete", complete(beat)},
+                           {"end_diastolic_m3", c.beat.max},
+                           {"end_systolic_m3", c.beat.min},
+                           {"ejection_fraction", c.beat.max > 0 ? (c.beat.max - c.beat.min) / c.beat.max : 0.0}});
+        c.beat = Range{};
+        c.beat.add(c.last);
       }
     };
     // Fiber shortening (contracting scenes): the volume-weighted mean fiber stretch |F f|
@@ -202,9 +227,16 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       }
       return sum / total_volume;
     };
-    double beat_min_stretch = HUGE_VAL, run_min_stretch = HUGE_VAL;
+    Range stretch_run, stretch_beat;
+    double last_stretch = 1.0;
+    stretch_run.add(1.0);
+    stretch_beat.add(1.0);
     json shortening_beats = json::array();
-    long shortening_beat = 0;
+    auto close_shortening_beat = [&](long beat) {
+      shortening_beats.push_back({{"beat", beat}, {"complete", complete(beat)}, {"peak_fiber_shortening", 1.0 - stretch_beat.min}});
+      stretch_beat = Range{};
+      stretch_beat.add(last_stretch);
+    };
     std::vector<double> step_s;
     step_s.reserve(static_cast<size_t>(std::min(steps, 1 << 20)));
     core::PhaseTimes total;
@@ -227,26 +259,22 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       }
       done = s;
       step_s.push_back(r.time.total_s);
-      if (contracting) {
-        const long beat = static_cast<long>(std::floor((sim.time_s() - 1e-9) / model.contraction.period_s));
-        if (beat != shortening_beat) {
-          shortening_beats.push_back({{"beat", shortening_beat}, {"peak_fiber_shortening", 1.0 - beat_min_stretch}});
-          beat_min_stretch = HUGE_VAL;
-          shortening_beat = beat;
-        }
-        const double stretch = mean_fiber_stretch();
-        beat_min_stretch = std::min(beat_min_stretch, stretch);
-        run_min_stretch = std::min(run_min_stretch, stretch);
+      const long beat = beat_of(sim.time_s());
+      if (beat != current_beat) {
+        if (contracting) close_shortening_beat(current_beat);
+        close_beat(current_beat);
+        current_beat = beat;
       }
-      if (!cav.empty()) {
-        const long beat = static_cast<long>(std::floor((sim.time_s() - 1e-9) / beat_period));
-        if (beat != current_beat) close_beat(current_beat), current_beat = beat;
-        for (size_t k = 0; k < cav.size(); ++k) {
-          const double v = core::cavity_volume(sc.cavities[k].surface, sim.positions());
-          CavityTrack& c = cav[k];
-          c.min = std::min(c.min, v), c.max = std::max(c.max, v);
-          c.beat_min = std::min(c.beat_min, v), c.beat_max = std::max(c.beat_max, v);
-        }
+      if (contracting) {
+        last_stretch = mean_fiber_stretch();
+        stretch_run.add(last_stretch);
+        stretch_beat.add(last_stretch);
+      }
+      for (size_t k = 0; k < cav.size(); ++k) {
+        CavityTrack& c = cav[k];
+        c.last = core::cavity_volume(sc.cavities[k].surface, sim.positions());
+        c.run.add(c.last);
+        c.beat.add(c.last);
       }
       total.rotations_s += r.time.rotations_s;
       total.assembly_s += r.time.assembly_s;
@@ -276,8 +304,6 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       }
     }
     if (o.progress_bar) std::fprintf(stderr, "\n");
-    std::signal(SIGINT, old_int);
-    std::signal(SIGTERM, old_term);
     const double wall = seconds_since(t0);
     const core::Energies e1 = sim.energies();
 
@@ -323,29 +349,29 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                           {"max_kinetic_j", std::max(max_kinetic, e1.kinetic_j)}};
     report["state"] = {{"max_speed_m_s", max_speed}, {"max_inverted_elements", max_inverted}};
     report["probes"] = probes_json(sc, sim.positions());
-    if (contracting && run_min_stretch < HUGE_VAL) {
-      shortening_beats.push_back({{"beat", shortening_beat}, {"peak_fiber_shortening", 1.0 - beat_min_stretch}});
+    if (contracting) {
+      if (stretch_beat.count > 1) close_shortening_beat(current_beat);
       report["contraction"] = {{"mode", core::to_string(model.contraction.mode)},
                                {"period_s", model.contraction.period_s},
-                               {"peak_fiber_shortening", 1.0 - run_min_stretch},
+                               {"peak_fiber_shortening", 1.0 - stretch_run.min},
                                {"beats", shortening_beats}};
-      std::snprintf(line, sizeof line, "contraction: peak fiber shortening %.3f (volume-weighted mean of |F f| - 1)\n",
-                    1.0 - run_min_stretch);
+      std::snprintf(line, sizeof line, "contraction: peak fiber shortening %.3f (1 - the volume-weighted mean of |F f|)\n",
+                    1.0 - stretch_run.min);
       out << line;
     }
     if (!cav.empty()) {
-      close_beat(current_beat);
+      if (cav[0].beat.count > 1) close_beat(current_beat);
       json cj = json::array();
       for (size_t k = 0; k < cav.size(); ++k) {
         const CavityTrack& c = cav[k];
-        const double ef = c.max > 0 ? (c.max - c.min) / c.max : 0.0;
+        const double ef = c.run.max > 0 ? (c.run.max - c.run.min) / c.run.max : 0.0;
         std::snprintf(line, sizeof line, "cavity %s: rest %.4g mL, %.4g to %.4g mL over the run, ejection fraction %.3f\n",
-                      sc.cavities[k].name.c_str(), 1e6 * c.rest, 1e6 * c.min, 1e6 * c.max, ef);
+                      sc.cavities[k].name.c_str(), 1e6 * c.rest, 1e6 * c.run.min, 1e6 * c.run.max, ef);
         out << line;
         cj.push_back({{"name", sc.cavities[k].name},
                       {"rest_m3", c.rest},
-                      {"min_m3", c.min},
-                      {"max_m3", c.max},
+                      {"min_m3", c.run.min},
+                      {"max_m3", c.run.max},
                       {"ejection_fraction", ef},
                       {"beats", c.beats}});
       }

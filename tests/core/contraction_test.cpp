@@ -133,6 +133,11 @@ TEST(Contraction, BadSettingsNameTheField) {
   c.element_delay_s = {0.0, -1.0};
   expect_invalid([&] { c.validate(1, 2); }, {"element_delay_s[1]"});
   expect_invalid([&] { core::pacing_delays(core::Positions::Zero(3, 4), {{0, 1, 2, 3}}, Vec3::Zero(), 0.0); }, {"speed"});
+  // A twitch that outlasts two periods would need more than the previous beat's tail.
+  c.element_delay_s.clear();
+  c.twitch.tau2_s = 0.5;
+  c.period_s = 0.5;
+  expect_invalid([&] { c.validate(1, 1); }, {"two periods", "tau2_s"});
 }
 
 // The tabulated beat the engine reads agrees with the closed form to 1e-5 of the peak over

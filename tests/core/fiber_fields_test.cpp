@@ -224,6 +224,12 @@ TEST(FiberFields, BadInputIsRefusedByName) {
   expect_invalid([&] { core::laplace_coordinate(m, {}, endo); }, {"zero_nodes", "no nodes"});
   expect_invalid([&] { core::laplace_coordinate(m, endo, {m.num_nodes()}); }, {"one_nodes", "out of range"});
   expect_invalid([&] { core::laplace_coordinate(m, endo, {endo[0]}); }, {"in both sets"});
+  {  // two separate boxes, held values on one only: the other is undetermined
+    core::Positions X(3, 8);
+    X << 0, 1, 0, 0, 5, 6, 5, 5, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1;
+    const core::TetMesh two(X, {{0, 1, 2, 3}, {4, 5, 6, 7}});
+    expect_invalid([&] { core::laplace_coordinate(two, {0}, {1}); }, {"4 nodes are not connected"});
+  }
   core::HelixRule r;
   r.apex_to_base = Vec3::Zero();
   expect_invalid([&] { core::helix_rule_fibers(m, Eigen::VectorXd::Zero(m.num_nodes()), r); }, {"apex_to_base"});

@@ -258,6 +258,9 @@ LOOKUP_TABLE default
   bad("ASCII", "BINARY", "only ASCII");
   bad("0 1 0 -1 -1 0 0 0 1", "0 1 0 -1 -1 0 0 0 x", "'x'");
   bad("7 9 9", "7 9 -2", "non-negative");
+  // A floating-point array before the tags is data, not tags (found in review).
+  std::istringstream with_stress(replace_once(vtk, "SCALARS region int 1", "SCALARS stress double 1\nLOOKUP_TABLE default\n1.5 -2.25 0.5\nSCALARS region int 1"));
+  EXPECT_EQ(fio::read_vtk(with_stress, "m.vtk", 1e-3).regions(), m.regions());
   bad("# vtk DataFile Version 2.0", "hello", "not a legacy VTK");
 }
 

@@ -424,6 +424,11 @@ TEST(Scene, ContractionKeys) {
   expect_error(replace_once(yaml, "heart_rate: 75", "heart_rate: 75\n  period: 1.0"), {"heart_rate or period"});
   expect_error(replace_once(yaml, "speed: 0.5", "speed: 0"), {"contraction.pacing.speed"});
   expect_error(replace_once(yaml, "{shape: sine, systole: 0.3}", "{tau1: 0.2, tau2: 0.1}"), {"contraction.twitch", "tau2_s"});
+  expect_error(replace_once(yaml, "peak_tension: 60.0e3", "regions: {}"), {"contraction.regions", "non-empty"});
+  expect_error(replace_once(yaml, "fibers:", "  - name: myocardium\n    select: all\n    material: {E: 1.0e4, nu: 0.3, density: 1000}\nfibers:"),
+               {"regions[1].name", "'myocardium' names an earlier region too"});
+  expect_error(std::string(kLv) + "contraction:\n  peak_tension: 1.0\n  heart_rate: 200\n  twitch: {tau1: 0.1, tau2: 0.9}\n",
+               {"contraction", "two periods"});
 }
 
 // measure.cavities: named boundary parts whose enclosed volume the run reports.
@@ -435,4 +440,6 @@ TEST(Scene, MeasureCavities) {
   EXPECT_EQ(s.cavities[0].surface.rim_nodes.size(), 18u);  // the endocardial base ring
   expect_error(replace_once(yaml, "{node_set: endo}", "{node_set: apex_endo}"), {"measure.cavities.lv", "no boundary triangle"});
   expect_error(replace_once(yaml, "{node_set: endo}", "{node_set: heart}"), {"measure.cavities.lv.node_set", "no node set 'heart'"});
+  // The outer wall's triangles point the other way: a negative "cavity".
+  expect_error(replace_once(yaml, "{node_set: endo}", "{node_set: epi}"), {"measure.cavities.lv", "select the cavity's own wall"});
 }

@@ -161,9 +161,11 @@ TEST(ShippedScenes, LvBeatContractsAndRelaxes) {
   const double pi = 3.14159265358979323846, rs = 0.007, rl = 0.017, b = 0.005;
   const double exact = pi * rs * rs * ((b + rl) - (b * b * b + rl * rl * rl) / (3 * rl * rl));
   EXPECT_NEAR(lv["rest_m3"].get<double>() / exact, 1.0 - 0.0215, 0.005);
-  ASSERT_GE(lv["beats"].size(), 2u);
+  ASSERT_EQ(lv["beats"].size(), 2u);
   EXPECT_TRUE(lv["beats"][0]["complete"].get<bool>());
   EXPECT_TRUE(lv["beats"][1]["complete"].get<bool>());
+  // Beat 0 starts from rest: its end-diastolic volume is the rest volume.
+  EXPECT_EQ(lv["beats"][0]["end_diastolic_m3"].get<double>(), lv["rest_m3"].get<double>());
   const double ef0 = lv["beats"][0]["ejection_fraction"].get<double>(), ef1 = lv["beats"][1]["ejection_fraction"].get<double>();
   EXPECT_NEAR(ef0, ef1, 0.01);
   EXPECT_GT(ef1, 0.3);
@@ -187,7 +189,8 @@ TEST(ShippedScenes, HeartBeatsWithPhysiologicalEjectionFractions) {
       EXPECT_LT(c["rest_m3"].get<double>(), lv_exact);
       EXPECT_GT(c["rest_m3"].get<double>(), 0.97 * lv_exact);
     }
-    ASSERT_GE(c["beats"].size(), 2u);
+    ASSERT_EQ(c["beats"].size(), 2u) << c["name"];
+    EXPECT_TRUE(c["beats"][1]["complete"].get<bool>());
     const double ef0 = c["beats"][0]["ejection_fraction"].get<double>(), ef1 = c["beats"][1]["ejection_fraction"].get<double>();
     EXPECT_NEAR(ef0, ef1, 0.01) << c["name"];
     EXPECT_GT(ef1, 0.3) << c["name"];
