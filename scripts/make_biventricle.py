@@ -20,6 +20,7 @@ import argparse
 import math
 
 import gmsh
+import gmsh_meshing
 
 BASE_Z = 0.012
 LV_EPI = (0.0, 0.0, 0.0, 0.025, 0.025, 0.045)
@@ -61,12 +62,7 @@ def main():
     ap.add_argument("--out", default="meshes/biventricle.msh")
     args = ap.parse_args()
 
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.option.setNumber("General.NumThreads", 1)
-    gmsh.option.setNumber("Mesh.RandomSeed", 1)
-    gmsh.model.add("biventricle")
-    occ = gmsh.model.occ
+    occ = gmsh_meshing.start("biventricle")
     lv_epi, lv_endo = ellipsoid(occ, LV_EPI), ellipsoid(occ, LV_ENDO)
     rv_epi, rv_endo = ellipsoid(occ, RV_EPI), ellipsoid(occ, RV_ENDO)
     # RV cavity: RV endocardium outside the LV epicardium (keep a copy of the LV epi).
@@ -94,18 +90,7 @@ def main():
         gmsh.model.addPhysicalGroup(2, groups[name], 10 + i, name=name)
     gmsh.model.addPhysicalGroup(2, groups["lv_endo"] + groups["rv_endo"], 20, name="endo")
 
-    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * args.size)
-    gmsh.option.setNumber("Mesh.MeshSizeMax", args.size)
-    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 12)
-    gmsh.option.setNumber("Mesh.Algorithm3D", 1)  # Delaunay
-    gmsh.option.setNumber("Mesh.Optimize", 1)
-    gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)
-    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-    gmsh.option.setNumber("Mesh.Binary", 0)
-    gmsh.model.mesh.generate(3)
-    gmsh.write(args.out)
-    types, tags, _ = gmsh.model.mesh.getElements(3)
-    n_tets = sum(len(t) for t in tags)
+    n_tets = gmsh_meshing.mesh_and_write(args.out, args.size, 0.5, 12)
     print(f"{args.out}: {n_tets} tetrahedra; surfaces: "
           + ", ".join(f"{k} {v}" for k, v in groups.items()))
     gmsh.finalize()

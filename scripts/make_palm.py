@@ -15,6 +15,7 @@ import argparse
 import math
 
 import gmsh
+import gmsh_meshing
 
 TRUNK_R, TRUNK_H = 0.018, 0.30
 LEAF_A, LEAF_B, LEAF_C = 0.10, 0.025, 0.005
@@ -48,12 +49,7 @@ def main():
     ap.add_argument("--size", type=float, default=0.01, help="target element size, m (default 0.01)")
     ap.add_argument("--out", default="meshes/palm.msh")
     args = ap.parse_args()
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.option.setNumber("General.NumThreads", 1)
-    gmsh.option.setNumber("Mesh.RandomSeed", 1)
-    gmsh.model.add("palm")
-    occ = gmsh.model.occ
+    occ = gmsh_meshing.start("palm")
     trunk = occ.addCylinder(0, 0, 0, 0, 0, TRUNK_H, TRUNK_R)
     leaves = []
     for k in range(N_LEAVES):
@@ -84,17 +80,8 @@ def main():
     gmsh.model.addPhysicalGroup(3, trunk_vols, 1, name="trunk")
     gmsh.model.addPhysicalGroup(3, leaf_vols, 2, name="leaves")
     gmsh.model.addPhysicalGroup(2, base, 10, name="base")
-    gmsh.option.setNumber("Mesh.MeshSizeMin", 0.5 * args.size)
-    gmsh.option.setNumber("Mesh.MeshSizeMax", args.size)
-    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 5)
-    gmsh.option.setNumber("Mesh.Algorithm3D", 1)
-    gmsh.option.setNumber("Mesh.Optimize", 1)
-    gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)
-    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-    gmsh.model.mesh.generate(3)
-    gmsh.write(args.out)
-    types, tags, _ = gmsh.model.mesh.getElements(3)
-    print(f"{args.out}: {sum(len(t) for t in tags)} tetrahedra; trunk volumes {trunk_vols}, leaf volumes {leaf_vols}")
+    n_tets = gmsh_meshing.mesh_and_write(args.out, args.size, 0.5, 5)
+    print(f"{args.out}: {n_tets} tetrahedra; trunk volumes {trunk_vols}, leaf volumes {leaf_vols}")
     for k in range(N_LEAVES):
         print(f"leaf {k}: base {leaf_base(k)}, tip {tuple(round(v, 5) for v in leaf_tip(k))}")
     gmsh.finalize()
