@@ -17,6 +17,8 @@ packages=(
   cyclonedds-dev cyclonedds-tools libhdf5-dev hdf5-tools
   libosmesa6-dev ffmpeg
   python3 python3-venv time
+  # the gmsh wheel's runtime libraries (scripts/make_*.py regenerate the shipped meshes)
+  libglu1-mesa libxcursor1 libxft2 libxinerama1 libgl1 libfontconfig1
 )
 
 missing=()
