@@ -1,5 +1,6 @@
 #include "core/model.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -69,6 +70,8 @@ void Model::validate() {
     const SurfaceLoad& s = loads.surface_loads[i];
     if (!std::isfinite(s.pressure_pa) || !s.force_per_area_pa.allFinite())
       throw std::invalid_argument("loads: surface load " + std::to_string(i) + " is not finite");
+    if (!(s.ramp_s >= 0 && std::isfinite(s.ramp_s)))
+      throw std::invalid_argument("loads: surface load " + std::to_string(i) + " ramp_s must be >= 0");
     for (const Tri& t : s.faces)
       for (int n : t)
         if (n < 0 || n >= mesh.num_nodes())
@@ -93,6 +96,35 @@ void add_surface_load(const Positions& rest, const SurfaceLoad& load, Eigen::Vec
     const Vec3 total = -load.pressure_pa * 0.5 * n2 + load.force_per_area_pa * 0.5 * n2.norm();
     for (int n : t) f.segment<3>(3 * n) += total / 3.0;
   }
+}
+
+void add_surface_load_at(const Positions& rest, const Eigen::Ref<const Positions>& x, const SurfaceLoad& load, double t_s,
+                         Eigen::VectorXd& f) {
+  const double scale = load.ramp_s > 0 ? std::clamp(t_s / load.ramp_s, 0.0, 1.0) : 1.0;
+  if (scale == 0.0) return;
+  for (const Tri& t : load.faces) {
+    const Vec3 a = rest.col(t[0]), b = rest.col(t[1]), c = rest.col(t[2]);
+    const Vec3 n_rest = (b - a).cross(c - a);
+    Vec3 n_press = n_rest;
+    if (load.follower) {
+      const Vec3 xa = x.col(t[0]), xb = x.col(t[1]), xc = x.col(t[2]);
+      n_press = (xb - xa).cross(xc - xa);
+    }
+    const Vec3 total = scale * (-load.pressure_pa * 0.5 * n_press + load.force_per_area_pa * 0.5 * n_rest.norm());
+    for (int n : t) f.segment<3>(3 * n) += total / 3.0;
+  }
+}
+
+Eigen::VectorXd Model::constant_external_forces() const {
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * mesh.num_nodes());
+  if (!loads.gravity_m_s2.isZero()) {
+    const Eigen::VectorXd m = lumped_node_masses();
+    for (int i = 0; i < mesh.num_nodes(); ++i) f.segment<3>(3 * i) += m(i) * loads.gravity_m_s2;
+  }
+  for (const PointForce& p : loads.point_forces) f.segment<3>(3 * p.node) += p.force_n;
+  for (const SurfaceLoad& s : loads.surface_loads)
+    if (!s.varies()) add_surface_load(mesh.rest_positions(), s, f);
+  return f;
 }
 
 Eigen::VectorXd Model::external_forces() const {

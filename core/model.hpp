@@ -34,6 +34,15 @@ struct SurfaceLoad {
   std::vector<Tri> faces;            ///< Triangles, outward counter-clockwise (as boundary_triangles()).
   double pressure_pa = 0.0;          ///< Along the inward normal, Pa.
   Vec3 force_per_area_pa = Vec3::Zero();  ///< Traction vector, Pa.
+  /// The pressure follows the deformed faces (their current inward normal and area),
+  /// updated every step of a dynamic run (explicitly, from the state the step starts
+  /// from). The static solver refuses it. Default false (dead: the rest faces).
+  bool follower = false;
+  /// The load grows linearly from zero to full over this time, s (>= 0; 0: full at once).
+  /// For quasi-static loading in dynamic runs; the static solver takes the full load.
+  double ramp_s = 0.0;
+  /// Whether the load changes during a run (follower or ramped).
+  bool varies() const { return follower || ramp_s > 0; }
 };
 
 /// External loads; all dead loads in the rest configuration.
@@ -71,9 +80,18 @@ struct Model {
   Eigen::VectorXd lumped_node_masses() const;
   /// External force on every DOF (3N) from the loads at load factor 1, newtons.
   Eigen::VectorXd external_forces() const;
+  /// The part of external_forces() that does not change during a run (without the
+  /// follower and ramped surface loads).
+  Eigen::VectorXd constant_external_forces() const;
 };
 
-/// Consistent nodal forces of a surface load, accumulated into `f` (3N).
+/// Consistent nodal forces of a surface load, accumulated into `f` (3N), at full load on
+/// the rest faces.
 void add_surface_load(const Positions& rest, const SurfaceLoad& load, Eigen::VectorXd& f);
+
+/// The same at time `t_s` of a run with positions `x`: scaled by the ramp, and with the
+/// pressure on the current faces when the load is a follower.
+void add_surface_load_at(const Positions& rest, const Eigen::Ref<const Positions>& x, const SurfaceLoad& load, double t_s,
+                         Eigen::VectorXd& f);
 
 }  // namespace fiberfem::core

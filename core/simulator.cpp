@@ -64,7 +64,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
       beta_e_[static_cast<size_t>(e)] =
           model_.region_damping[static_cast<size_t>(model_.mesh.regions()[static_cast<size_t>(e)])].stiffness_s;
   update_node_masses();
-  f_ext_ = model_.external_forces();
+  refresh_external_forces();
   solver_ = make_linear_solver(settings_.solver);
   solver_->set_blocks(sys_.node_block_starts());
   const int nn = model_.mesh.num_nodes();
@@ -92,6 +92,18 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
     tension_table_ = model_.contraction.tabulate();
   }
   reset();
+}
+
+void Simulator::refresh_external_forces() {
+  f_ext_const_ = model_.constant_external_forces();
+  varying_loads_.clear();
+  for (const SurfaceLoad& s : model_.loads.surface_loads)
+    if (s.varies()) varying_loads_.push_back(&s);
+  f_ext_ = f_ext_const_;
+  const bool have_state = x_.size() == 3 * model_.mesh.num_nodes();  // not yet in the constructor
+  for (const SurfaceLoad* s : varying_loads_)
+    add_surface_load_at(model_.mesh.rest_positions(), have_state ? positions() : Eigen::Map<const Positions>(model_.mesh.rest_positions().data(), 3, model_.mesh.num_nodes()),
+                        *s, have_state ? time_s_ : 0.0, f_ext_);
 }
 
 void Simulator::update_node_masses() {
@@ -220,6 +232,10 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
 
   // Phase 2: assembly of A and of the elastic and active forces.
   t0 = Clock::now();
+  if (!varying_loads_.empty()) {  // ramped and follower loads at the end of the (sub)step
+    f_ext_ = f_ext_const_;
+    for (const SurfaceLoad* s : varying_loads_) add_surface_load_at(model_.mesh.rest_positions(), positions(), *s, time_s_ + h, f_ext_);
+  }
   const Contraction& con = model_.contraction;
   if (con.enabled()) {
     // The tension at the end of the (sub)step, as backward Euler evaluates forces there,
@@ -506,7 +522,7 @@ void Simulator::set_region_material(int region, const Material& material) {
   caches_.rebuild(model_, elems);
   update_node_masses();
   solver_->invalidate();
-  f_ext_ = model_.external_forces();
+  refresh_external_forces();
 }
 
 void Simulator::set_region_damping(int region, const RayleighDamping& damping) {
@@ -555,7 +571,7 @@ void Simulator::set_time_step(double dt_s) {
 void Simulator::set_gravity(const Vec3& g) {
   if (!g.allFinite()) throw std::invalid_argument("set_gravity: gravity must be finite");
   model_.loads.gravity_m_s2 = g;
-  f_ext_ = model_.external_forces();
+  refresh_external_forces();
 }
 
 void Simulator::set_loads(const Loads& loads) {
@@ -563,7 +579,7 @@ void Simulator::set_loads(const Loads& loads) {
   probe.loads = loads;
   probe.validate();
   model_.loads = loads;
-  f_ext_ = model_.external_forces();
+  refresh_external_forces();
 }
 
 void Simulator::set_solver_settings(const SolverSettings& s) {

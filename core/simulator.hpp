@@ -108,6 +108,9 @@ class Simulator {
   double time_s() const { return time_s_; }
   long step_count() const { return steps_; }
 
+  /// External force of the last step (3N, newtons): gravity, point forces and surface
+  /// loads, with ramped and follower loads as that step applied them.
+  const Eigen::VectorXd& external_force() const { return f_ext_; }
   /// Exact energies of the current state (one pass over the elements).
   Energies energies() const;
   /// Elements with det F <= 0 in the current state.
@@ -153,7 +156,10 @@ class Simulator {
   std::vector<double> beta_e_;      // per element stiffness damping, s
   Eigen::VectorXd mass_;            // per node, kg
   Eigen::VectorXd mass_alpha_;      // per node, sum alpha_e m_e / 4, kg/s
-  Eigen::VectorXd f_ext_;           // 3N
+  Eigen::VectorXd f_ext_;           // 3N, the external force of the current (sub)step
+  Eigen::VectorXd f_ext_const_;     // 3N, its part that never changes
+  std::vector<const SurfaceLoad*> varying_loads_;  // ramped or follower (into model_.loads)
+  void refresh_external_forces();
   std::vector<double> active_;      // per element tension, Pa (empty: off)
   TwitchTable tension_table_;       // the contraction's normalised beat, tabulated
   Eigen::VectorXd x_, v_;           // 3N

@@ -88,6 +88,10 @@ class Equilibrium {
 StaticReport solve_static(Model model, Positions& x_io, const StaticSettings& s) {
   s.validate();
   model.validate();
+  for (size_t i = 0; i < model.loads.surface_loads.size(); ++i)
+    if (model.loads.surface_loads[i].follower)
+      throw std::invalid_argument("static: surface load " + std::to_string(i) +
+                                  " is a follower pressure, which only dynamic runs apply (ramp it and let the run settle)");
   const int n = model.mesh.num_nodes();
   if (x_io.cols() == 0) x_io = model.mesh.rest_positions();
   if (x_io.cols() != n) throw std::invalid_argument("static: initial guess has the wrong node count");

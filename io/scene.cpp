@@ -650,7 +650,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
       if (!tr.IsSequence()) ctx.fail(tr, "loads.tractions", "expected a list");
       for (size_t i = 0; i < tr.size(); ++i) {
         const std::string path = "loads.tractions[" + std::to_string(i) + "]";
-        Map t(ctx, tr[i], path, {"on", "pressure", "force_per_area"});
+        Map t(ctx, tr[i], path, {"on", "pressure", "force_per_area", "follower", "ramp"});
         if (!t.has("on")) ctx.fail(tr[i], path, "needs on: <node selector>");
         std::vector<int> nodes = select_nodes(ctx, t["on"], t.sub("on"), model.mesh);
         core::SurfaceLoad load;
@@ -661,6 +661,11 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
         if (t.has("pressure") == t.has("force_per_area")) ctx.fail(tr[i], path, "give exactly one of pressure, force_per_area");
         if (t.has("pressure")) load.pressure_pa = number(ctx, t["pressure"], t.sub("pressure"));
         if (t.has("force_per_area")) load.force_per_area_pa = vec3(ctx, t["force_per_area"], t.sub("force_per_area"));
+        if (t.has("follower")) {
+          load.follower = choice(ctx, t["follower"], t.sub("follower"), {"true", "false"}) == "true";
+          if (load.follower && !t.has("pressure")) ctx.fail(t["follower"], t.sub("follower"), "goes with pressure");
+        }
+        if (t.has("ramp")) load.ramp_s = number(ctx, t["ramp"], t.sub("ramp"), 0, 1e6);
         model.loads.surface_loads.push_back(std::move(load));
       }
     }

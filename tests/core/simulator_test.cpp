@@ -599,3 +599,59 @@ TEST(Simulator, InvalidSettingsAndChangesAreRefusedByName) {
   // None of the refused changes touched the simulation.
   EXPECT_EQ(sim.step().status, core::StepStatus::ok);
 }
+
+// Ramped and follower surface loads. A ramp scales the load by t / ramp_s; a follower
+// pressure acts on the current faces, so turning the body rigidly turns the force with it
+// (a dead pressure keeps its rest direction). Totals over the loaded face are compared
+// with the rotation applied to the rest total: a geometric identity, independent of the
+// elasticity.
+TEST(Simulator, RampedAndFollowerPressures) {
+  core::BoxSpec b;
+  b.size_m = Vec3(0.02, 0.01, 0.01);
+  b.cells = {4, 2, 2};
+  auto make = [&](bool follower, double ramp) {
+    core::Model m(core::make_box(b));
+    m.region_materials = {core::Material::isotropic(1e5, 0.3, 1000)};
+    core::SurfaceLoad load;
+    const auto& top = m.mesh.node_set("zmax");
+    for (const core::Tri& t : m.mesh.boundary_triangles())
+      if (std::all_of(t.begin(), t.end(), [&](int n) { return std::find(top.begin(), top.end(), n) != top.end(); }))
+        load.faces.push_back(t);
+    load.pressure_pa = 100.0;
+    load.follower = follower;
+    load.ramp_s = ramp;
+    m.loads.surface_loads = {load};
+    return m;
+  };
+  auto total = [](const Eigen::VectorXd& f) {
+    Vec3 s = Vec3::Zero();
+    for (Eigen::Index i = 0; i < f.size(); i += 3) s += f.segment<3>(i);
+    return s;
+  };
+  const Vec3 full(0, 0, -100.0 * 0.02 * 0.01);  // pressure x area, along the inward normal (-z)
+  {  // ramp: a quarter of the load at a quarter of the ramp
+    core::SimulatorSettings st;
+    st.dt_s = 0.01;
+    core::Simulator sim(make(false, 0.1), st);
+    EXPECT_LT(total(sim.external_force()).norm(), 1e-15);
+    for (int s = 0; s < 2; ++s) sim.step();  // t = 0.02 s
+    sim.set_time_step(0.005);
+    sim.step();  // ends at t = 0.025
+    EXPECT_LT((total(sim.external_force()) - 0.25 * full).norm(), 1e-12 * full.norm());
+  }
+  // A quarter turn about x, at rest: follower turns, dead does not.
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(M_PI / 2, Vec3::UnitX()).toRotationMatrix();
+  for (bool follower : {true, false}) {
+    core::SimulatorSettings st;
+    st.dt_s = 1e-4;
+    core::Simulator sim(make(follower, 0.0), st);
+    const core::Positions X = sim.model().mesh.rest_positions();
+    sim.set_state(R * X, core::Positions::Zero(3, X.cols()));
+    sim.step();
+    const Vec3 expected = follower ? Vec3(R * full) : full;
+    EXPECT_LT((total(sim.external_force()) - expected).norm(), 1e-9 * full.norm()) << (follower ? "follower" : "dead");
+  }
+  // The static solver refuses a follower pressure by name.
+  core::Positions x;
+  fiberfem::testing::expect_invalid([&] { core::solve_static(make(true, 0.0), x); }, {"follower pressure"});
+}

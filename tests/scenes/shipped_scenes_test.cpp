@@ -240,4 +240,30 @@ TEST(ShippedScenes, PalmTreeVariantsFollowThePapersFindings) {
   EXPECT_GT(drag.tip_y - fib.tip_y, 1e-3) << "the leaf follows the 0.5 N drag along +y";
 }
 
+// Land problem 2 with the linearised material (configs/scenes/land-ventricle-p2.yaml): no
+// pass/fail against the published 10 kPa shape (the linear material cannot carry it: a
+// limit point between 2 and 3 kPa, docs/scenes.md), so the test checks what must hold:
+// the run settles (kinetic energy negligible) at both 1 and 2 kPa, the cavity and the
+// apex descent grow with the pressure, and the follower pressure inflates more than a dead
+// one of the same size (the wall's area grows, and so does the load on it).
+TEST(ShippedScenes, LandVentricleProblem2InflatesAndSettles) {
+  auto run = [&](const std::string& pressure, const std::string& follower) {
+    return run_scene("land-ventricle-p2.yaml",
+                     {"--set", "loads.tractions[0].pressure=" + pressure, "--set", "loads.tractions[0].follower=" + follower});
+  };
+  const json p1 = run("1.0e3", "true"), p2 = run("2.0e3", "true"), dead = run("2.0e3", "false");
+  for (const json* r : {&p1, &p2, &dead})
+    EXPECT_LT((*r)["energies"]["final"]["kinetic_j"].get<double>(), 1e-12 * (*r)["energies"]["final"]["elastic_j"].get<double>());
+  auto volume = [](const json& r) { return r["cavities"][0]["max_m3"].get<double>(); };
+  auto apex = [](const json& r) { return probe(r, "apex_endo")["final_m"][2].get<double>(); };
+  EXPECT_GT(volume(p1), p1["cavities"][0]["rest_m3"].get<double>());
+  EXPECT_GT(volume(p2), volume(p1));
+  EXPECT_LT(apex(p2), apex(p1));
+  EXPECT_LT(apex(p1), -0.017);
+  EXPECT_GT(volume(p2), volume(dead));
+  std::printf("Land problem 2, linearised: inner apex z %.2f mm at 1 kPa, %.2f mm at 2 kPa (dead load %.2f); "
+              "cavity %.3f / %.3f mL\n",
+              1e3 * apex(p1), 1e3 * apex(p2), 1e3 * apex(dead), 1e6 * volume(p1), 1e6 * volume(p2));
+}
+
 }  // namespace
