@@ -227,6 +227,18 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       }
       return sum / total_volume;
     };
+    // Largest displacement of each probe, over the run and per beat (the apex's excursion).
+    std::vector<Range> probe_run(sc.probes.size()), probe_beat(sc.probes.size());
+    std::vector<double> probe_last(sc.probes.size(), 0.0);
+    std::vector<json> probe_beats(sc.probes.size(), json::array());
+    for (size_t k = 0; k < sc.probes.size(); ++k) probe_run[k].add(0.0), probe_beat[k].add(0.0);
+    auto close_probe_beat = [&](long beat) {
+      for (size_t k = 0; k < sc.probes.size(); ++k) {
+        probe_beats[k].push_back({{"beat", beat}, {"complete", complete(beat)}, {"max_displacement_norm_m", probe_beat[k].max}});
+        probe_beat[k] = Range{};
+        probe_beat[k].add(probe_last[k]);
+      }
+    };
     Range stretch_run, stretch_beat;
     double last_stretch = 1.0;
     stretch_run.add(1.0);
@@ -263,7 +275,13 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       if (beat != current_beat) {
         if (contracting) close_shortening_beat(current_beat);
         close_beat(current_beat);
+        close_probe_beat(current_beat);
         current_beat = beat;
+      }
+      for (size_t k = 0; k < sc.probes.size(); ++k) {
+        probe_last[k] = sc.probes[k].displacement(model.mesh, sim.positions()).norm();
+        probe_run[k].add(probe_last[k]);
+        probe_beat[k].add(probe_last[k]);
       }
       if (contracting) {
         last_stretch = mean_fiber_stretch();
@@ -349,6 +367,11 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                           {"max_kinetic_j", std::max(max_kinetic, e1.kinetic_j)}};
     report["state"] = {{"max_speed_m_s", max_speed}, {"max_inverted_elements", max_inverted}};
     report["probes"] = probes_json(sc, sim.positions());
+    if (!sc.probes.empty() && probe_beat[0].count > 1) close_probe_beat(current_beat);
+    for (size_t k = 0; k < sc.probes.size(); ++k) {
+      report["probes"][k]["max_displacement_norm_m"] = probe_run[k].max;
+      report["probes"][k]["beats"] = probe_beats[k];
+    }
     if (contracting) {
       if (stretch_beat.count > 1) close_shortening_beat(current_beat);
       report["contraction"] = {{"mode", core::to_string(model.contraction.mode)},

@@ -170,6 +170,13 @@ TEST(ShippedScenes, LvBeatContractsAndRelaxes) {
   EXPECT_NEAR(ef0, ef1, 0.01);
   EXPECT_GT(ef1, 0.3);
   EXPECT_LT(ef1, 0.7);
+  // The apex excursion per beat: the same in both beats, and at least what the probe showed
+  // at t = 0.1 s (the per-beat maximum is taken over every step).
+  const json apex = probe(full, "apex_endo");
+  ASSERT_EQ(apex["beats"].size(), 2u);
+  const double a0 = apex["beats"][0]["max_displacement_norm_m"].get<double>(), a1 = apex["beats"][1]["max_displacement_norm_m"].get<double>();
+  EXPECT_NEAR(a0 / a1, 1.0, 0.01);
+  EXPECT_GE(a0 * (1 + 1e-12), std::hypot(p_ae[0].get<double>(), p_ae[1].get<double>(), p_ae[2].get<double>()));
   const json rest = run_scene("lv-beat.yaml", {"--until", "0.8"});
   EXPECT_LT(std::abs(probe(rest, "equator_endo")["displacement_m"][0].get<double>()), 0.05 * std::abs(p_eq[0].get<double>()));
 }
