@@ -100,10 +100,13 @@ void Simulator::refresh_external_forces() {
   for (const SurfaceLoad& s : model_.loads.surface_loads)
     if (s.varies()) varying_loads_.push_back(&s);
   f_ext_ = f_ext_const_;
-  const bool have_state = x_.size() == 3 * model_.mesh.num_nodes();  // not yet in the constructor
+  const Positions& rest = model_.mesh.rest_positions();
+  const bool have_state = x_.size() == rest.size();  // not yet in the constructor
   for (const SurfaceLoad* s : varying_loads_)
-    add_surface_load_at(model_.mesh.rest_positions(), have_state ? positions() : Eigen::Map<const Positions>(model_.mesh.rest_positions().data(), 3, model_.mesh.num_nodes()),
-                        *s, have_state ? time_s_ : 0.0, f_ext_);
+    if (have_state)
+      add_surface_load_at(rest, positions(), *s, time_s_, f_ext_);
+    else
+      add_surface_load_at(rest, rest, *s, 0.0, f_ext_);
 }
 
 void Simulator::update_node_masses() {

@@ -88,6 +88,43 @@ void write_report(const std::string& path, const json& report) {
   std::filesystem::rename(tmp, path);
 }
 
+// A quantity sampled every step of a dynamic run: its extremes over the run and per beat.
+// The first beat starts from the rest sample, and the sample at a beat's boundary belongs
+// to both beats.
+class BeatSeries {
+ public:
+  struct Range {
+    double min = HUGE_VAL, max = -HUGE_VAL;
+    long count = 0;
+    void add(double v) { min = std::min(min, v), max = std::max(max, v), ++count; }
+  };
+  explicit BeatSeries(double rest) : last_(rest) {
+    run_.add(rest);
+    beat_.add(rest);
+  }
+  void add(double v) {
+    last_ = v;
+    run_.add(v);
+    beat_.add(v);
+  }
+  const Range& run() const { return run_; }
+  /// Ends beat `index`: its entry is {beat, complete} plus what `describe(range, entry)` adds.
+  template <class Describe>
+  void close(long index, bool complete, Describe&& describe) {
+    json entry = {{"beat", index}, {"complete", complete}};
+    describe(beat_, entry);
+    beats_.push_back(entry);
+    beat_ = Range{};
+    beat_.add(last_);
+  }
+  const json& beats() const { return beats_; }
+
+ private:
+  Range run_, beat_;
+  double last_;
+  json beats_ = json::array();
+};
+
 void draw_bar(double fraction, const std::string& text) {
   constexpr int kWidth = 30;
   const int filled = std::clamp(static_cast<int>(fraction * kWidth + 0.5), 0, kWidth);
@@ -175,50 +212,21 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
     const double beat_period = model.contraction.enabled() ? model.contraction.period_s : HUGE_VAL;
     const double dt = sc.settings.dt_s;
     auto beat_of = [&](double t) { return beat_period < HUGE_VAL ? static_cast<long>(std::floor((t - 0.5 * dt) / beat_period)) : 0L; };
-    struct Range {
-      double min = HUGE_VAL, max = -HUGE_VAL;
-      long count = 0;
-      void add(double v) { min = std::min(min, v), max = std::max(max, v), ++count; }
-    };
-    // Cavity volumes: at rest, then every step; per beat the largest and smallest give the
-    // ejection fraction.
-    struct CavityTrack {
-      double rest = 0, last = 0;
-      Range run, beat;
-      json beats = json::array();
-    };
-    std::vector<CavityTrack> cav(sc.cavities.size());
-    for (size_t k = 0; k < cav.size(); ++k) {
-      CavityTrack& c = cav[k];
-      c.rest = c.last = core::cavity_volume(sc.cavities[k].surface, sim.positions());
-      c.run.add(c.rest);
-      c.beat.add(c.rest);
+    // Per-beat series: cavity volumes (the ejection fraction), each probe's displacement
+    // (the apex excursion) and, when contracting, the volume-weighted mean fiber stretch
+    // |F f| (the peak shortening).
+    std::vector<BeatSeries> volumes, probe_u;
+    std::vector<double> rest_volume;
+    for (const io::CavityMeasure& c : sc.cavities) {
+      rest_volume.push_back(core::cavity_volume(c.surface, sim.positions()));
+      volumes.emplace_back(rest_volume.back());
     }
-    long current_beat = 0;
-    auto complete = [&](long beat) { return beat_period < HUGE_VAL && (beat + 1) * beat_period <= sim.time_s() + 0.5 * dt; };
-    auto close_beat = [&](long beat) {
-      for (auto& c : cav) {
-        if (c.beat.count == 0) continue;
-        c.beats.push_back({{"beat", beat},
-                           {"complete", complete(beat)},
-                           {"end_diastolic_m3", c.beat.max},
-                           {"end_systolic_m3", c.beat.min},
-                           {"ejection_fraction", c.beat.max > 0 ? (c.beat.max - c.beat.min) / c.beat.max : 0.0}});
-        c.beat = Range{};
-        c.beat.add(c.last);
-      }
-    };
-    // Fiber shortening (contracting scenes): the volume-weighted mean fiber stretch |F f|
-    // of the mesh each step; its smallest value per beat gives the peak shortening.
+    for (size_t k = 0; k < sc.probes.size(); ++k) probe_u.emplace_back(0.0);
     const bool contracting = model.contraction.enabled();
-    std::vector<core::Mat3> Dm_inv;
-    double total_volume = 0;
-    if (contracting) {
-      for (int e = 0; e < model.mesh.num_elements(); ++e)
-        Dm_inv.push_back(core::rest_shape_inverse(core::gather(model.mesh.rest_positions(), model.mesh.tets()[static_cast<size_t>(e)])));
-      total_volume = model.mesh.total_volume();
-    }
+    BeatSeries stretch(1.0);
+    const double total_volume = model.mesh.total_volume();
     auto mean_fiber_stretch = [&]() {
+      const std::vector<core::Mat3>& Dm_inv = sim.caches().Dm_inv;
       double sum = 0;
       for (int e = 0; e < model.mesh.num_elements(); ++e) {
         const size_t i = static_cast<size_t>(e);
@@ -227,27 +235,21 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       }
       return sum / total_volume;
     };
-    // Largest displacement of each probe, over the run and per beat (the apex's excursion).
-    std::vector<Range> probe_run(sc.probes.size()), probe_beat(sc.probes.size());
-    std::vector<double> probe_last(sc.probes.size(), 0.0);
-    std::vector<json> probe_beats(sc.probes.size(), json::array());
-    for (size_t k = 0; k < sc.probes.size(); ++k) probe_run[k].add(0.0), probe_beat[k].add(0.0);
-    auto close_probe_beat = [&](long beat) {
-      for (size_t k = 0; k < sc.probes.size(); ++k) {
-        probe_beats[k].push_back({{"beat", beat}, {"complete", complete(beat)}, {"max_displacement_norm_m", probe_beat[k].max}});
-        probe_beat[k] = Range{};
-        probe_beat[k].add(probe_last[k]);
-      }
-    };
-    Range stretch_run, stretch_beat;
-    double last_stretch = 1.0;
-    stretch_run.add(1.0);
-    stretch_beat.add(1.0);
-    json shortening_beats = json::array();
-    auto close_shortening_beat = [&](long beat) {
-      shortening_beats.push_back({{"beat", beat}, {"complete", complete(beat)}, {"peak_fiber_shortening", 1.0 - stretch_beat.min}});
-      stretch_beat = Range{};
-      stretch_beat.add(last_stretch);
+    long current_beat = 0, steps_in_beat = 0;
+    auto complete = [&](long beat) { return beat_period < HUGE_VAL && (beat + 1) * beat_period <= sim.time_s() + 0.5 * dt; };
+    auto close_beat = [&](long beat) {
+      for (BeatSeries& v : volumes)
+        v.close(beat, complete(beat), [](const BeatSeries::Range& r, json& e) {
+          e["end_diastolic_m3"] = r.max;
+          e["end_systolic_m3"] = r.min;
+          e["ejection_fraction"] = r.max > 0 ? (r.max - r.min) / r.max : 0.0;
+        });
+      for (BeatSeries& u : probe_u)
+        u.close(beat, complete(beat), [](const BeatSeries::Range& r, json& e) { e["max_displacement_norm_m"] = r.max; });
+      if (contracting)
+        stretch.close(beat, complete(beat),
+                      [](const BeatSeries::Range& r, json& e) { e["peak_fiber_shortening"] = 1.0 - r.min; });
+      steps_in_beat = 0;
     };
     std::vector<double> step_s;
     step_s.reserve(static_cast<size_t>(std::min(steps, 1 << 20)));
@@ -273,27 +275,13 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       step_s.push_back(r.time.total_s);
       const long beat = beat_of(sim.time_s());
       if (beat != current_beat) {
-        if (contracting) close_shortening_beat(current_beat);
         close_beat(current_beat);
-        close_probe_beat(current_beat);
         current_beat = beat;
       }
-      for (size_t k = 0; k < sc.probes.size(); ++k) {
-        probe_last[k] = sc.probes[k].displacement(model.mesh, sim.positions()).norm();
-        probe_run[k].add(probe_last[k]);
-        probe_beat[k].add(probe_last[k]);
-      }
-      if (contracting) {
-        last_stretch = mean_fiber_stretch();
-        stretch_run.add(last_stretch);
-        stretch_beat.add(last_stretch);
-      }
-      for (size_t k = 0; k < cav.size(); ++k) {
-        CavityTrack& c = cav[k];
-        c.last = core::cavity_volume(sc.cavities[k].surface, sim.positions());
-        c.run.add(c.last);
-        c.beat.add(c.last);
-      }
+      for (size_t k = 0; k < sc.probes.size(); ++k) probe_u[k].add(sc.probes[k].displacement(model.mesh, sim.positions()).norm());
+      if (contracting) stretch.add(mean_fiber_stretch());
+      for (size_t k = 0; k < volumes.size(); ++k) volumes[k].add(core::cavity_volume(sc.cavities[k].surface, sim.positions()));
+      ++steps_in_beat;
       total.rotations_s += r.time.rotations_s;
       total.assembly_s += r.time.assembly_s;
       total.solve_s += r.time.solve_s;
@@ -367,36 +355,34 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                           {"max_kinetic_j", std::max(max_kinetic, e1.kinetic_j)}};
     report["state"] = {{"max_speed_m_s", max_speed}, {"max_inverted_elements", max_inverted}};
     report["probes"] = probes_json(sc, sim.positions());
-    if (!sc.probes.empty() && probe_beat[0].count > 1) close_probe_beat(current_beat);
+    if (steps_in_beat > 0) close_beat(current_beat);  // the last beat, if a step fell in it
     for (size_t k = 0; k < sc.probes.size(); ++k) {
-      report["probes"][k]["max_displacement_norm_m"] = probe_run[k].max;
-      report["probes"][k]["beats"] = probe_beats[k];
+      report["probes"][k]["max_displacement_norm_m"] = probe_u[k].run().max;
+      report["probes"][k]["beats"] = probe_u[k].beats();
     }
     if (contracting) {
-      if (stretch_beat.count > 1) close_shortening_beat(current_beat);
       report["contraction"] = {{"mode", core::to_string(model.contraction.mode)},
                                {"period_s", model.contraction.period_s},
-                               {"peak_fiber_shortening", 1.0 - stretch_run.min},
-                               {"beats", shortening_beats}};
+                               {"peak_fiber_shortening", 1.0 - stretch.run().min},
+                               {"beats", stretch.beats()}};
       std::snprintf(line, sizeof line, "contraction: peak fiber shortening %.3f (1 - the volume-weighted mean of |F f|)\n",
-                    1.0 - stretch_run.min);
+                    1.0 - stretch.run().min);
       out << line;
     }
-    if (!cav.empty()) {
-      if (cav[0].beat.count > 1) close_beat(current_beat);
+    if (!volumes.empty()) {
       json cj = json::array();
-      for (size_t k = 0; k < cav.size(); ++k) {
-        const CavityTrack& c = cav[k];
-        const double ef = c.run.max > 0 ? (c.run.max - c.run.min) / c.run.max : 0.0;
+      for (size_t k = 0; k < volumes.size(); ++k) {
+        const BeatSeries::Range& r = volumes[k].run();
+        const double ef = r.max > 0 ? (r.max - r.min) / r.max : 0.0;
         std::snprintf(line, sizeof line, "cavity %s: rest %.4g mL, %.4g to %.4g mL over the run, ejection fraction %.3f\n",
-                      sc.cavities[k].name.c_str(), 1e6 * c.rest, 1e6 * c.run.min, 1e6 * c.run.max, ef);
+                      sc.cavities[k].name.c_str(), 1e6 * rest_volume[k], 1e6 * r.min, 1e6 * r.max, ef);
         out << line;
         cj.push_back({{"name", sc.cavities[k].name},
-                      {"rest_m3", c.rest},
-                      {"min_m3", c.run.min},
-                      {"max_m3", c.run.max},
+                      {"rest_m3", rest_volume[k]},
+                      {"min_m3", r.min},
+                      {"max_m3", r.max},
                       {"ejection_fraction", ef},
-                      {"beats", c.beats}});
+                      {"beats", volumes[k].beats()}});
       }
       report["cavities"] = cj;
     }

@@ -2,11 +2,16 @@
 // Shared helpers for the GoogleTest suites.
 
 #include "core/builtin_scenes.hpp"
+#include "core/lv_ellipsoid.hpp"
 #include "core/types.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <map>
 #include <random>
+#include <vector>
 #include <stdexcept>
 #include <string>
 
@@ -46,6 +51,40 @@ inline std::string replace_once(std::string s, const std::string& from, const st
   const size_t at = s.find(from);
   EXPECT_NE(at, std::string::npos) << from;
   if (at != std::string::npos) s.replace(at, from.size(), to);
+  return s;
+}
+
+/// How many elements use each triangular face (sorted node triple): 2 for an interior
+/// face of a conforming mesh, 1 on the boundary. Counted from the connectivity alone,
+/// independently of TetMesh's own boundary.
+inline std::map<std::array<int, 3>, int> face_uses(const std::vector<core::Tet>& tets) {
+  std::map<std::array<int, 3>, int> uses;
+  for (const core::Tet& t : tets)
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<int, 3> f{};
+      int k = 0;
+      for (int a = 0; a < 4; ++a)
+        if (a != skip) f[static_cast<size_t>(k++)] = t[static_cast<size_t>(a)];
+      std::sort(f.begin(), f.end());
+      uses[f] += 1;
+    }
+  return uses;
+}
+
+/// Volume of the ellipsoid x^2/rs^2 + y^2/rs^2 + z^2/rl^2 <= 1 below the plane z = b: the
+/// cross-section at height z is a disk of area pi rs^2 (1 - z^2/rl^2), so
+/// V = pi rs^2 int_{-rl}^{b} (1 - z^2/rl^2) dz = pi rs^2 ((b + rl) - (b^3 + rl^3) / (3 rl^2)).
+inline double truncated_ellipsoid_volume(double rs, double rl, double b) {
+  const double pi = 3.14159265358979323846;
+  return pi * rs * rs * ((b + rl) - (b * b * b + rl * rl * rl) / (3 * rl * rl));
+}
+
+/// The benchmark ellipsoid's default geometry at the given resolution.
+inline core::LvEllipsoidSpec lv_spec(int circumferential, int longitudinal, int transmural) {
+  core::LvEllipsoidSpec s;
+  s.circumferential = circumferential;
+  s.longitudinal = longitudinal;
+  s.transmural = transmural;
   return s;
 }
 

@@ -84,16 +84,7 @@ TEST(MakeBox, ConformingWithTheRightBoundary) {
     const auto [nx, ny, nz] = s.cells;
     const core::TetMesh m = core::make_box(s);
     SCOPED_TRACE(testing::Message() << "cells " << nx << "x" << ny << "x" << nz);
-    std::map<std::array<int, 3>, int> uses;
-    for (const core::Tet& t : m.tets())
-      for (int skip = 0; skip < 4; ++skip) {
-        std::array<int, 3> f{};
-        int k = 0;
-        for (int a = 0; a < 4; ++a)
-          if (a != skip) f[static_cast<size_t>(k++)] = t[static_cast<size_t>(a)];
-        std::sort(f.begin(), f.end());
-        uses[f] += 1;
-      }
+    const std::map<std::array<int, 3>, int> uses = fiberfem::testing::face_uses(m.tets());
     int once = 0, twice = 0;
     for (const auto& [f, n] : uses) {
       EXPECT_TRUE(n == 1 || n == 2) << "face used " << n << " times";

@@ -16,20 +16,10 @@ using core::Vec3;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
-// pi rs^2 int_{-rl}^{b} (1 - z^2 / rl^2) dz.
-double truncated_ellipsoid(double rs, double rl, double b) {
-  return kPi * rs * rs * ((b + rl) - (b * b * b + rl * rl * rl) / (3 * rl * rl));
-}
+constexpr auto truncated_ellipsoid = fiberfem::testing::truncated_ellipsoid_volume;
 
-core::TetMesh lv(int c, int l, int t) {
-  core::LvEllipsoidSpec s;
-  s.circumferential = c;
-  s.longitudinal = l;
-  s.transmural = t;
-  return core::make_lv_ellipsoid(s);
-}
+core::TetMesh lv(int c, int l, int t) { return core::make_lv_ellipsoid(fiberfem::testing::lv_spec(c, l, t)); }
 
 }  // namespace
 
@@ -46,7 +36,9 @@ TEST(Cavity, EndocardialVolumeConvergesToTheTruncatedEllipsoid) {
     const double err = (exact - v) / exact;
     std::printf("cavity (%d, %d): %.6e m^3 vs %.6e, error %.4f\n", 12 * k, 5 * k, v, exact, err);
     EXPECT_GT(err, 0);
-    if (k > 1) EXPECT_GT(last / err, 3.0);
+    if (k > 1) {
+      EXPECT_GT(last / err, 3.0);
+    }
     last = err;
   }
   EXPECT_LT(last, 0.01);

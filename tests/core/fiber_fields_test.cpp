@@ -56,13 +56,7 @@ Analytic land_field(const core::LvEllipsoidSpec& s, const Vec3& p, double endo_d
   return {t_geo, (std::sin(a) * e_u + std::cos(a) * e_v).normalized(), e_u, e_v};
 }
 
-core::LvEllipsoidSpec lv(int c, int l, int t) {
-  core::LvEllipsoidSpec s;
-  s.circumferential = c;
-  s.longitudinal = l;
-  s.transmural = t;
-  return s;
-}
+constexpr auto lv = fiberfem::testing::lv_spec;
 
 }  // namespace
 

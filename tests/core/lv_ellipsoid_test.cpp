@@ -22,22 +22,10 @@ using fiberfem::testing::expect_invalid;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
-core::LvEllipsoidSpec spec_of(int circumferential, int longitudinal, int transmural) {
-  core::LvEllipsoidSpec s;
-  s.circumferential = circumferential;
-  s.longitudinal = longitudinal;
-  s.transmural = transmural;
-  return s;
-}
-
-// Volume of the ellipsoid x^2/rs^2 + y^2/rs^2 + z^2/rl^2 <= 1 below the plane z = b: the
-// cross-section at height z is a disk of area pi rs^2 (1 - z^2/rl^2), so
-// V = pi rs^2 int_{-rl}^{b} (1 - z^2/rl^2) dz = pi rs^2 ((b + rl) - (b^3 + rl^3) / (3 rl^2)).
-double cap_volume(double rs, double rl, double b) {
-  return kPi * rs * rs * ((b + rl) - (b * b * b + rl * rl * rl) / (3 * rl * rl));
-}
+using fiberfem::testing::lv_spec;
+constexpr auto spec_of = lv_spec;
+constexpr auto cap_volume = fiberfem::testing::truncated_ellipsoid_volume;
 
 // x^2/rs^2 + y^2/rs^2 + z^2/rl^2: 1 on the ellipsoid.
 double ellipsoid(const Vec3& p, double rs, double rl) {
@@ -156,16 +144,7 @@ TEST(MakeLvEllipsoid, ConformingClosedBoundaryOfEndoEpiAndBase) {
     const int P = m.num_nodes() / (T + 1);
     const int F = 2 * P - C - 2;
     EXPECT_EQ(m.num_elements(), 3 * F * T);
-    std::map<std::array<int, 3>, int> uses;
-    for (const core::Tet& t : m.tets())
-      for (int skip = 0; skip < 4; ++skip) {
-        std::array<int, 3> f{};
-        int k = 0;
-        for (int a = 0; a < 4; ++a)
-          if (a != skip) f[static_cast<size_t>(k++)] = t[static_cast<size_t>(a)];
-        std::sort(f.begin(), f.end());
-        uses[f] += 1;
-      }
+    const std::map<std::array<int, 3>, int> uses = fiberfem::testing::face_uses(m.tets());
     std::set<std::array<int, 3>> once;
     for (const auto& [f, n] : uses) {
       EXPECT_TRUE(n == 1 || n == 2) << "face used " << n << " times";

@@ -4,6 +4,7 @@
 
 #include "core/builtin_scenes.hpp"
 #include "process_support.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -158,8 +159,7 @@ TEST(ShippedScenes, LvBeatContractsAndRelaxes) {
   const json full = run_scene("lv-beat.yaml");
   ASSERT_EQ(full["cavities"].size(), 1u);
   const json& lv = full["cavities"][0];
-  const double pi = 3.14159265358979323846, rs = 0.007, rl = 0.017, b = 0.005;
-  const double exact = pi * rs * rs * ((b + rl) - (b * b * b + rl * rl * rl) / (3 * rl * rl));
+  const double exact = fiberfem::testing::truncated_ellipsoid_volume(0.007, 0.017, 0.005);
   EXPECT_NEAR(lv["rest_m3"].get<double>() / exact, 1.0 - 0.0215, 0.005);
   ASSERT_EQ(lv["beats"].size(), 2u);
   EXPECT_TRUE(lv["beats"][0]["complete"].get<bool>());
@@ -189,8 +189,7 @@ TEST(ShippedScenes, LvBeatContractsAndRelaxes) {
 TEST(ShippedScenes, HeartBeatsWithPhysiologicalEjectionFractions) {
   const json r = run_scene("heart.yaml");
   ASSERT_EQ(r["cavities"].size(), 2u);
-  const double pi = 3.14159265358979323846, rs = 0.015, rl = 0.038, b = 0.012;
-  const double lv_exact = pi * rs * rs * ((b + rl) - (b * b * b + rl * rl * rl) / (3 * rl * rl));
+  const double lv_exact = fiberfem::testing::truncated_ellipsoid_volume(0.015, 0.038, 0.012);
   for (const json& c : r["cavities"]) {
     if (c["name"] == "lv") {
       EXPECT_LT(c["rest_m3"].get<double>(), lv_exact);
