@@ -1,86 +1,15 @@
-// The `fiberfem` command. `fiberfem run SCENE.yaml` (or `--builtin cantilever`, an embedded
-// copy of configs/scenes/demo-cantilever.yaml) runs a scene in batch: a progress bar on a
-// terminal, a summary, and an optional JSON report (docs/options.md, docs/report-format.md).
+// The `fiberfem` command: one subcommand per job (service/commands.hpp), each in its own
+// file. `fiberfem run SCENE.yaml` runs a scene in batch (docs/options.md).
 
-#include "io/scene.hpp"
-#include "service/batch_run.hpp"
-#include "service/builtin_scenes.hpp"
+#include "service/commands.hpp"
 
 #include <CLI/CLI.hpp>
-
-#include <charconv>
-#include <cstdio>
-#include <iostream>
-#include <unistd.h>
-
-namespace {
-
-// Shortest text that reads back as `v` (so `--dt 0.005` is `solver.dt=0.005`).
-std::string format_number(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"fiberfem: fiber-incorporated corotational FEM"};
   app.require_subcommand(1);
-  auto* run = app.add_subcommand("run", "Run a scene in batch (no bus)");
-  std::string scene_file, builtin = "cantilever", solver, preconditioner, rotation, max_energy_gain;
-  double dt = 0, tolerance = 0;
-  std::vector<int> cells;
-  fiberfem::service::BatchOptions o;
-  run->add_option("scene", scene_file, "Scene file (YAML, docs/scenes.md); without one, --builtin runs");
-  run->add_option("--scene", scene_file, "Same as the positional scene file");
-  run->add_option("--builtin", builtin, "Built-in scene when no file is given: cantilever")->capture_default_str();
-  run->add_option("--set", o.overrides, "Override a scene key: key.path=value (repeatable)");
-  run->add_flag("--static", o.force_static, "Solve for static equilibrium instead of time stepping");
-  run->add_option("--steps", o.steps, "Number of steps (instead of --until)")->check(CLI::PositiveNumber);
-  run->add_option("--until", o.until_s, "Simulated time, s (default: the scene's solver.until)")->check(CLI::PositiveNumber);
-  run->add_option("--report", o.report_path, "Write a JSON report here (docs/report-format.md)");
-  run->add_flag("--compare-static", o.compare_static, "After a dynamic run, solve statically and compare the probes");
-  // Shorthands for scene keys (each becomes a --set before the explicit ones).
-  run->add_option("--dt", dt, "Time step, s (solver.dt)")->check(CLI::Range(1e-6, 10.0));
-  run->add_option("--solver", solver, "pcg | direct (solver.method)")->check(CLI::IsMember({"pcg", "direct"}));
-  run->add_option("--preconditioner", preconditioner, "cholesky | block_jacobi (solver.preconditioner)")
-      ->check(CLI::IsMember({"cholesky", "block_jacobi"}));
-  run->add_option("--tolerance", tolerance, "PCG relative tolerance (solver.tolerance)")->check(CLI::Range(1e-14, 0.5));
-  run->add_option("--rotation", rotation, "polar | svd (solver.rotation)")->check(CLI::IsMember({"svd", "polar"}));
-  run->add_option("--max-energy-gain", max_energy_gain, "Energy check per step, relative; inf: off (solver.max_energy_gain)");
-  run->add_option("--cells", cells, "Box cells along x y z (mesh.cells)")->expected(3)->check(CLI::Range(1, 2000));
+  int exit_code = 0;
+  fiberfem::service::add_run_command(app, exit_code);
   CLI11_PARSE(app, argc, argv);
-
-  std::vector<std::string> sets;
-  if (run->count("--dt")) sets.push_back("solver.dt=" + format_number(dt));
-  if (!solver.empty()) sets.push_back("solver.method=" + solver);
-  if (!preconditioner.empty()) sets.push_back("solver.preconditioner=" + preconditioner);
-  if (run->count("--tolerance")) sets.push_back("solver.tolerance=" + format_number(tolerance));
-  if (!rotation.empty()) sets.push_back("solver.rotation=" + rotation);
-  if (!max_energy_gain.empty()) sets.push_back("solver.max_energy_gain=" + max_energy_gain);
-  if (!cells.empty())
-    sets.push_back("mesh.cells=[" + std::to_string(cells[0]) + ", " + std::to_string(cells[1]) + ", " +
-                   std::to_string(cells[2]) + "]");
-  sets.insert(sets.end(), o.overrides.begin(), o.overrides.end());
-  o.overrides = sets;
-  o.progress_bar = isatty(fileno(stderr)) != 0;
-
-  try {
-    if (!scene_file.empty()) {
-      o.source = scene_file;
-      return fiberfem::service::run_batch(fiberfem::io::load_scene(scene_file, o.overrides), o, std::cout);
-    }
-    const auto& scenes = fiberfem::service::builtin_scenes();
-    const auto it = scenes.find(builtin);
-    if (it == scenes.end()) {
-      std::cerr << "fiberfem: unknown built-in scene '" << builtin << "' (available: cantilever)\n";
-      return 2;
-    }
-    o.source = "builtin:" + builtin;
-    return fiberfem::service::run_batch(fiberfem::io::parse_scene(it->second, o.source, "", o.overrides), o, std::cout);
-  } catch (const std::exception& e) {
-    std::cerr << "fiberfem: " << e.what() << "\n";
-    return 1;
-  }
+  return exit_code;
 }

@@ -1,0 +1,15 @@
+#pragma once
+/// @file The subcommands of `fiberfem`, one registration function each (one file each:
+/// cmd_run.cpp, ...). Each adds its subcommand to the app with a callback that runs it
+/// and stores the process exit code in `exit_code`.
+
+namespace CLI {
+class App;
+}
+
+namespace fiberfem::service {
+
+/// `fiberfem run`: a scene in batch, without the bus (cmd_run.cpp).
+void add_run_command(CLI::App& app, int& exit_code);
+
+}  // namespace fiberfem::service
