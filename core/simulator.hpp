@@ -115,6 +115,9 @@ class Simulator {
   Energies energies() const;
   /// Elements with det F <= 0 in the current state.
   int count_inverted() const;
+  /// Active tension per element along its fiber, Pa, as the last step applied it (the
+  /// contraction schedule or set_active_tension); empty when contraction is off.
+  const std::vector<double>& active_tension() const { return active_; }
 
   const Model& model() const { return model_; }
   const SimulatorSettings& settings() const { return settings_; }
