@@ -141,6 +141,7 @@ void Simulator::reset() {
   vfree_prev_ = vfree_;
   time_s_ = 0;
   steps_ = 0;
+  contraction_origin_s_ = 0;
 }
 
 void Simulator::apply_fixed() {
@@ -243,7 +244,7 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   if (con.enabled()) {
     // The tension at the end of the (sub)step, as backward Euler evaluates forces there,
     // from the tabulated beat (Contraction::tabulate).
-    const double t_end = time_s_ + h;
+    const double t_end = time_s_ + h - contraction_origin_s_;
     const auto& regions = model_.mesh.regions();
     const bool delays = !con.element_delay_s.empty();
     const double shared = tension_table_.value(t_end);
@@ -620,6 +621,37 @@ void Simulator::set_active_tension(std::vector<double> tension_pa) {
       throw std::invalid_argument("set_active_tension: element " + std::to_string(e) + " is not finite");
   if (caches_.g.empty()) caches_.build_active(model_);
   active_ = std::move(tension_pa);
+}
+
+void Simulator::set_contraction(Contraction contraction) {
+  contraction.validate(model_.mesh.num_regions(), model_.mesh.num_elements());
+  const bool was_on = model_.contraction.enabled();
+  const bool on = contraction.enabled();
+  if (on) {
+    // Keep the phase of the beat under way (a rate change must not jump the twitch):
+    // phase = time since the current beat began. The new origin puts the current beat
+    // at the same phase, one whole new period (or more) after the origin so the table's
+    // first-beat branch (no previous tail) is not taken again.
+    double origin = time_s_;
+    if (was_on) {
+      const double since = time_s_ - contraction_origin_s_;
+      const double old_period = model_.contraction.period_s;
+      if (since >= old_period) {
+        const double phase = since - std::floor(since / old_period) * old_period;
+        origin = time_s_ - phase - contraction.period_s;
+      } else {
+        origin = contraction_origin_s_;  // still in the first beat
+      }
+    }
+    TwitchTable table = contraction.tabulate();
+    if (caches_.g.empty()) caches_.build_active(model_);
+    tension_table_ = std::move(table);
+    contraction_origin_s_ = origin;
+    active_.assign(static_cast<size_t>(model_.mesh.num_elements()), 0.0);
+  } else {
+    active_.clear();
+  }
+  model_.contraction = std::move(contraction);
 }
 
 }  // namespace fiberfem::core

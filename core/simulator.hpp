@@ -143,6 +143,14 @@ class Simulator {
   /// contraction schedule (Model::contraction): with one, the schedule sets the tension
   /// at the end of every (sub)step and this throws.
   void set_active_tension(std::vector<double> tension_pa);
+  /// Replaces the contraction schedule (heart rate, peak tensions, twitch, pacing delays,
+  /// mode) between steps. A beat under way keeps its phase: when only the period changes,
+  /// the current beat goes on and the next one starts one new period after it began. A
+  /// schedule switched on starts its first beat now; switched off, the tension drops to
+  /// zero. @throws std::invalid_argument (Contraction::validate) and changes nothing.
+  void set_contraction(Contraction contraction);
+  /// Time the contraction schedule counts beats from, s (0 unless set_contraction moved it).
+  double contraction_origin_s() const { return contraction_origin_s_; }
 
  private:
   bool advance(double h, bool last_chance, StepReport& r, std::string& why);
@@ -176,6 +184,7 @@ class Simulator {
   std::vector<Mat3> block_R_;
   double time_s_ = 0;
   long steps_ = 0;
+  double contraction_origin_s_ = 0;  // beats are counted from here (set_contraction)
   // work
   Eigen::VectorXd f_, rhs_, vfree_;
   Eigen::VectorXd vfree_prev_, guess_;  // last two solutions (warm start extrapolation)

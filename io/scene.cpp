@@ -26,6 +26,7 @@ using core::Vec3;
 struct Ctx {
   std::string origin;
   std::vector<std::string> overridden;  // key paths set by --set (they have no file line)
+  const EmbeddedFiles* embedded = nullptr;  // files held in memory, by resolved path
   [[noreturn]] void fail(const YAML::Node& at, const std::string& path, const std::string& what) const {
     for (const std::string& o : overridden)
       if (path.compare(0, o.size(), o) == 0 && (path.size() == o.size() || path[o.size()] == '.' || path[o.size()] == '['))
@@ -239,6 +240,10 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
     mesh_file = path;
     const double scale = m.has("scale") ? number(ctx, m["scale"], "mesh.scale", 0, HUGE_VAL, true) : 1.0;
     try {
+      if (ctx.embedded && ctx.embedded->count(path)) {  // a built-in scene's mesh (gmsh only)
+        std::istringstream in(ctx.embedded->at(path));
+        return read_gmsh(in, path, scale);
+      }
       return read_mesh(path, scale);
     } catch (const std::invalid_argument& e) {
       ctx.fail(m["file"], "mesh.file", e.what());
@@ -533,8 +538,8 @@ core::Contraction contraction(const Ctx& ctx, const YAML::Node& node, const core
 }  // namespace
 
 Scene parse_scene(const std::string& yaml_text, const std::string& origin, const std::string& base_dir,
-                  const std::vector<std::string>& overrides) {
-  Ctx ctx{origin, {}};
+                  const std::vector<std::string>& overrides, const EmbeddedFiles* embedded) {
+  Ctx ctx{origin, {}, embedded};
   for (const std::string& o : overrides) ctx.overridden.push_back(o.substr(0, o.find('=')));
   YAML::Node root;
   try {
@@ -784,13 +789,22 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   std::string hashed = canonical.c_str();
   std::vector<std::string> hashed_files = files_read;
   if (!mesh_file.empty()) hashed_files.insert(hashed_files.begin(), mesh_file);
+  scene.canonical_yaml = hashed;
   for (const std::string& file : hashed_files) {
-    std::ifstream mf(file, std::ios::binary);
-    std::stringstream bytes;
-    bytes << mf.rdbuf();
-    hashed += "\n--- " + file.substr(file.rfind('/') + 1) + " ---\n" + bytes.str();
+    std::string bytes;
+    if (embedded && embedded->count(file)) {
+      bytes = embedded->at(file);
+    } else {
+      std::ifstream mf(file, std::ios::binary);
+      std::stringstream ss;
+      ss << mf.rdbuf();
+      bytes = ss.str();
+    }
+    hashed += "\n--- " + file.substr(file.rfind('/') + 1) + " ---\n" + bytes;
   }
   scene.hash_sha256 = sha256_hex(hashed);
+  scene.region_names = region_names;
+  scene.base_dir = base_dir;
   scene.mesh_file = mesh_file;
   return scene;
 }
@@ -803,6 +817,40 @@ core::Vec3 Probe::displacement(const core::TetMesh& mesh, const core::Positions&
     u += weights(a) * (x.col(n) - mesh.rest_positions().col(n));
   }
   return u;
+}
+
+namespace {
+YAML::Node load_section(const std::string& yaml_text, const std::string& origin) {
+  try {
+    return YAML::Load(yaml_text);
+  } catch (const YAML::ParserException& e) {
+    throw SceneError(origin + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML or JSON: " + e.msg);
+  }
+}
+}  // namespace
+
+core::Material parse_material(const std::string& yaml_text, const std::string& origin) {
+  const Ctx ctx{origin, {}, nullptr};
+  return material(ctx, load_section(yaml_text, origin), "material");
+}
+
+core::Contraction parse_contraction(const std::string& yaml_text, const core::TetMesh& mesh,
+                                    const std::vector<std::string>& region_names, const std::string& origin) {
+  const Ctx ctx{origin, {}, nullptr};
+  core::Contraction c = contraction(ctx, load_section(yaml_text, origin), mesh, region_names);
+  try {
+    c.validate(mesh.num_regions(), mesh.num_elements());
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(origin + ": contraction: " + e.what());
+  }
+  return c;
+}
+
+std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::TetMesh& mesh, const std::string& base_dir,
+                                     const std::string& origin) {
+  const Ctx ctx{origin, {}, nullptr};
+  std::vector<std::string> files_read;
+  return fibers(ctx, load_section(yaml_text, origin), mesh, base_dir, files_read);
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {

@@ -6,6 +6,7 @@
 #include "core/model.hpp"
 #include "core/simulator.hpp"
 
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -53,7 +54,18 @@ struct Scene {
   std::string hash_sha256;
   /// The mesh file read (path as opened), or empty for a generator.
   std::string mesh_file;
+  /// The scene as parsed (after overrides), emitted canonically (comments and layout
+  /// dropped): parse_scene of this text with the same base_dir rebuilds the scene.
+  std::string canonical_yaml;
+  /// Region names, by region id.
+  std::vector<std::string> region_names;
+  /// Where relative file paths of the scene are looked up.
+  std::string base_dir;
 };
+
+/// Files held in memory (built-in scenes' meshes), by path as the scene resolves it
+/// (base_dir + "/" + the scene's path). Such a file is read from here instead of disk.
+using EmbeddedFiles = std::map<std::string, std::string>;
 
 /// Parses YAML text. `origin` names the source in error messages (a file name);
 /// `base_dir` is where relative mesh file paths are looked up (empty: the working dir).
@@ -64,7 +76,22 @@ struct Scene {
 /// `solver.dt=0.01`); the value is parsed as YAML (`loads.gravity=[0, 0, -1]`). Missing
 /// mapping keys are created; a bad path is a SceneError naming the override.
 Scene parse_scene(const std::string& yaml_text, const std::string& origin = "<scene>",
-                  const std::string& base_dir = "", const std::vector<std::string>& overrides = {});
+                  const std::string& base_dir = "", const std::vector<std::string>& overrides = {},
+                  const EmbeddedFiles* embedded = nullptr);
+
+// Sections of a scene parsed alone, with the keys and checks of a scene file
+// (docs/scenes.md): the service applies parameter commands through these. YAML or JSON
+// text; `origin` names the source in errors. @throws SceneError naming the key.
+
+/// A region's `material` mapping.
+core::Material parse_material(const std::string& yaml_text, const std::string& origin);
+/// The `contraction` mapping for this mesh (region names resolve `regions`; `pacing`
+/// delays are computed on the rest mesh), validated.
+core::Contraction parse_contraction(const std::string& yaml_text, const core::TetMesh& mesh,
+                                    const std::vector<std::string>& region_names, const std::string& origin);
+/// The `fibers` mapping (uniform, rule, strokes, file) for this mesh, per element.
+std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::TetMesh& mesh,
+                                     const std::string& base_dir, const std::string& origin);
 
 /// Reads and parses a scene file (with optional overrides, as parse_scene).
 /// @throws SceneError (also for an unreadable file).

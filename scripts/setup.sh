@@ -40,7 +40,7 @@ else
 fi
 
 # Python packages (tests and tools) in a virtual environment beside the build.
-if ! .venv/bin/python -c "import meshio, gmsh" 2>/dev/null; then
+if ! .venv/bin/python -c "import meshio, gmsh, cyclonedds" 2>/dev/null; then
   echo "setup: creating .venv with scripts/requirements.txt"
   python3 -m venv .venv
   .venv/bin/pip install -q -r scripts/requirements.txt

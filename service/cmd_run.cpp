@@ -53,14 +53,8 @@ int run_command(CLI::App& run, RunArgs& a) {
       o.source = a.scene_file;
       return run_batch(io::load_scene(a.scene_file, o.overrides), o, std::cout);
     }
-    const auto& scenes = builtin_scenes();
-    const auto it = scenes.find(a.builtin);
-    if (it == scenes.end()) {
-      std::cerr << "fiberfem: unknown built-in scene '" << a.builtin << "' (available: cantilever)\n";
-      return 2;
-    }
     o.source = "builtin:" + a.builtin;
-    return run_batch(io::parse_scene(it->second, o.source, "", o.overrides), o, std::cout);
+    return run_batch(load_builtin_scene(a.builtin, o.overrides), o, std::cout);
   } catch (const std::exception& e) {
     std::cerr << "fiberfem: " << e.what() << "\n";
     return 1;
@@ -75,7 +69,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
   BatchOptions& o = a->o;
   run->add_option("scene", a->scene_file, "Scene file (YAML, docs/scenes.md); without one, --builtin runs");
   run->add_option("--scene", a->scene_file, "Same as the positional scene file");
-  run->add_option("--builtin", a->builtin, "Built-in scene when no file is given: cantilever")->capture_default_str();
+  run->add_option("--builtin", a->builtin, "Built-in scene when no file is given: cantilever | heart")->capture_default_str();
   run->add_option("--set", o.overrides, "Override a scene key: key.path=value (repeatable)");
   run->add_flag("--static", o.force_static, "Solve for static equilibrium instead of time stepping");
   run->add_option("--steps", o.steps, "Number of steps (instead of --until)")->check(CLI::PositiveNumber);

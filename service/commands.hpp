@@ -12,4 +12,10 @@ namespace fiberfem::service {
 /// `fiberfem run`: a scene in batch, without the bus (cmd_run.cpp).
 void add_run_command(CLI::App& app, int& exit_code);
 
+/// `fiberfem serve`: the service on DDS (cmd_serve.cpp; built with FIBERFEM_WITH_DDS).
+void add_serve_command(CLI::App& app, int& exit_code);
+
+/// `fiberfem ctl`: the command-line client (clients/ctl; built with FIBERFEM_WITH_DDS).
+void add_ctl_command(CLI::App& app, int& exit_code);
+
 }  // namespace fiberfem::service

@@ -10,6 +10,10 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int exit_code = 0;
   fiberfem::service::add_run_command(app, exit_code);
+#ifdef FIBERFEM_WITH_DDS
+  fiberfem::service::add_serve_command(app, exit_code);
+  fiberfem::service::add_ctl_command(app, exit_code);
+#endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

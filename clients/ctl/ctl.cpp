@@ -1,0 +1,170 @@
+// `fiberfem ctl`: the command-line client (docs/ctl.md). List runs, watch a run's status,
+// echo its frames, show its topology, and send any command (docs/commands.md), waiting
+// for the acknowledgement: exit 0 when accepted, 3 when rejected, 4 on no answer.
+
+#include "clients/ctl/client.hpp"
+#include "service/commands.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <numeric>
+#include <unistd.h>
+
+namespace fiberfem::service {
+namespace {
+
+using clients::Client;
+using std::chrono::milliseconds;
+
+volatile std::sig_atomic_t g_ctl_stop = 0;
+extern "C" void on_ctl_signal(int) { g_ctl_stop = 1; }
+
+struct CtlArgs {
+  std::string run_id;
+  double timeout_s = 10;
+  // list
+  double wait_s = 1.5;
+  // status / echo
+  bool watch = false, table = false;
+  int count = 0;
+  // send
+  std::string kind, args = "{}";
+};
+
+void print_status_line(const clients::RunStatus& s, bool same_line) {
+  std::printf("%s%-24s %-9s t=%9.3f s  frame %8lu  %7.1f steps/s  x%5.2f real time  step %6.2f ms  iters %3d  res %.1e  inv %d  v%u%s",
+              same_line ? "\r" : "", s.run_id.c_str(), s.state.c_str(), s.time_s, s.frame, s.frames_per_second,
+              s.real_time_factor, s.step_ms, s.solver_iterations, s.solver_residual, s.inverted_elements, s.parameter_version,
+              same_line ? "   " : "\n");
+  std::fflush(stdout);
+}
+
+int run_ctl(const std::string& what, CtlArgs& a) {
+  const milliseconds timeout(static_cast<long>(a.timeout_s * 1000));
+  Client client;
+  if (what == "list") {
+    const auto runs = client.discover(milliseconds(static_cast<long>(a.wait_s * 1000)));
+    if (runs.empty()) {
+      std::cerr << "fiberfem ctl: no runs seen in " << a.wait_s << " s\n";
+      return 1;
+    }
+    std::printf("%-32s %-16s %-10s %-9s %10s %9s %8s %s\n", "run", "scene", "host", "state", "t (s)", "steps/s", "rt", "pid");
+    for (const auto& [id, s] : runs)
+      std::printf("%-32s %-16s %-10s %-9s %10.3f %9.1f %8.2f %d%s\n", id.c_str(), s.scene_name.c_str(), s.host.c_str(),
+                  s.state.c_str(), s.time_s, s.frames_per_second, s.real_time_factor, s.pid, s.replay ? " replay" : "");
+    return 0;
+  }
+  const std::string run = client.resolve_run(a.run_id, timeout);
+  if (what == "status") {
+    std::signal(SIGINT, on_ctl_signal);
+    const bool tty = isatty(fileno(stdout)) != 0;
+    int shown = 0;
+    do {
+      const auto s = client.status(run, timeout);
+      if (!s) {
+        std::cerr << "\nfiberfem ctl: no status from '" << run << "' for " << a.timeout_s << " s\n";
+        return 4;
+      }
+      if (a.table) {
+        std::printf("run %s\n  scene %s on %s (pid %d), %s, %s\n  t %.4f s, frame %lu, dt %.4g s\n"
+                    "  %.1f steps/s, real-time factor %.3f, step %.3f ms (solve %.3f ms), publish %.3f ms\n"
+                    "  solver %d iterations, residual %.2e; %d inverted; %u recovered, %u failed steps\n"
+                    "  energies: kinetic %.4e J, elastic %.4e J\n  heart rate %.1f /min, peak tension %.4g Pa, parameter version %u\n"
+                    "  recording: %s\n  last message: %s\n",
+                    s->run_id.c_str(), s->scene_name.c_str(), s->host.c_str(), s->pid, s->state.c_str(), s->mode.c_str(), s->time_s,
+                    s->frame, s->dt_s, s->frames_per_second, s->real_time_factor, s->step_ms, s->solve_ms, s->publish_ms,
+                    s->solver_iterations, s->solver_residual, s->inverted_elements, s->recovered_steps, s->failed_steps,
+                    s->kinetic_energy_j, s->elastic_energy_j, s->heart_rate_bpm, s->peak_tension_pa, s->parameter_version,
+                    s->recording.empty() ? "off" : s->recording.c_str(), s->last_message.empty() ? "-" : s->last_message.c_str());
+      } else {
+        print_status_line(*s, a.watch && tty);
+      }
+      ++shown;
+    } while ((a.watch || a.count > shown) && !g_ctl_stop && (a.count == 0 || shown < a.count));
+    if (a.watch && tty) std::printf("\n");
+    return 0;
+  }
+  if (what == "echo") {
+    std::signal(SIGINT, on_ctl_signal);
+    long last = -1;
+    for (int shown = 0; !g_ctl_stop && (a.count == 0 || shown < a.count); ++shown) {
+      const auto st = client.next_state(run, timeout, last);
+      if (!st) {
+        std::cerr << "fiberfem ctl: no state from '" << run << "' for " << a.timeout_s << " s\n";
+        return 4;
+      }
+      last = static_cast<long>(st->frame);
+      const double act = st->activation.empty() ? 0.0
+                                                : std::accumulate(st->activation.begin(), st->activation.end(), 0.0) /
+                                                      static_cast<double>(st->activation.size());
+      std::printf("frame %lu t=%.4f s v%u: %zu nodes, node 0 at [%.6g, %.6g, %.6g] m, mean activation %.4f\n", st->frame,
+                  st->time_s, st->parameter_version, st->positions.size() / 3, st->positions.size() ? st->positions[0] : 0.f,
+                  st->positions.size() ? st->positions[1] : 0.f, st->positions.size() ? st->positions[2] : 0.f, act);
+      std::fflush(stdout);
+    }
+    return 0;
+  }
+  if (what == "topology") {
+    const auto t = client.topology(run, timeout);
+    if (!t) {
+      std::cerr << "fiberfem ctl: no topology from '" << run << "' for " << a.timeout_s << " s\n";
+      return 4;
+    }
+    std::string regions;
+    for (const auto& r : t->region_names) regions += (regions.empty() ? "" : ", ") + r;
+    std::printf("run %s: scene %s (sha256 %.12s...), %u nodes, %u elements, %zu boundary triangles, regions [%s], %zu fixed nodes, "
+                "states carry %s%s\n",
+                t->run_id.c_str(), t->scene_name.c_str(), t->scene_hash.c_str(), t->num_nodes, t->num_elements,
+                t->triangles.size() / 3, regions.c_str(), t->fixed_nodes.size(),
+                t->state_nodes.empty() ? "all nodes" : (std::to_string(t->state_nodes.size()) + " surface nodes").c_str(),
+                t->replay ? " (replay)" : "");
+    return 0;
+  }
+  // send
+  const clients::Ack ack = client.send(run, a.kind, a.args, timeout);
+  std::printf("%s %s: %s (frame %lu, parameter version %u)\n", a.kind.c_str(), ack.accepted ? "accepted" : "rejected",
+              ack.reason.c_str(), ack.frame, ack.parameter_version);
+  return ack.accepted ? 0 : 3;
+}
+
+}  // namespace
+
+void add_ctl_command(CLI::App& app, int& exit_code) {
+  auto* ctl = app.add_subcommand("ctl", "Command-line client of running services (DDS)");
+  ctl->require_subcommand(1);
+  auto a = std::make_shared<CtlArgs>();
+  ctl->add_option("--run", a->run_id, "Run id (default: the only run on the domain)");
+  ctl->add_option("--timeout", a->timeout_s, "How long to wait for a service, state or acknowledgement, s")
+      ->check(CLI::Range(0.01, 3600.0))
+      ->capture_default_str();
+
+  auto* list = ctl->add_subcommand("list", "List the runs on the domain");
+  list->add_option("--wait", a->wait_s, "How long to listen for status, s")->check(CLI::Range(0.1, 600.0))->capture_default_str();
+  auto* status = ctl->add_subcommand("status", "Show a run's status");
+  status->add_flag("--watch", a->watch, "Keep refreshing one line until Ctrl-C");
+  status->add_flag("--table", a->table, "All fields, one per line");
+  status->add_option("--count", a->count, "Show this many status samples")->check(CLI::PositiveNumber);
+  auto* echo = ctl->add_subcommand("echo", "Print the frames a run publishes");
+  echo->add_option("--count", a->count, "Stop after this many frames (default: until Ctrl-C)")->check(CLI::PositiveNumber);
+  auto* topo = ctl->add_subcommand("topology", "Print a run's topology (mesh, regions, fibers)");
+  auto* send = ctl->add_subcommand("send", "Send a command and wait for its acknowledgement (docs/commands.md)");
+  send->add_option("kind", a->kind, "Command kind, e.g. pause, apply_force, set_contraction")->required();
+  send->add_option("args", a->args, "Arguments as a JSON object")->capture_default_str();
+  for (CLI::App* sub : {list, status, echo, topo, send}) {
+    const std::string name = sub->get_name();
+    sub->callback([a, name, &exit_code] {
+      try {
+        exit_code = run_ctl(name, *a);
+      } catch (const std::exception& e) {
+        std::cerr << "fiberfem ctl: " << e.what() << "\n";
+        exit_code = 4;
+      }
+    });
+  }
+}
+
+}  // namespace fiberfem::service

@@ -1,0 +1,83 @@
+#pragma once
+/// @file A running scene and everything a command can change (docs/commands.md), with no
+/// DDS in it: the service feeds it commands at step boundaries, tests call it directly.
+///
+/// A command is a kind and a JSON (or YAML) object of arguments. Each is checked whole
+/// before anything changes: a rejected command changes nothing and its reason names the
+/// argument at fault. Parameter commands that have a scene-file form (material,
+/// contraction, fibers) are merged into the running scene's document and parsed by the
+/// scene parser, so they take the same keys, units and checks as a scene file.
+
+#include "core/simulator.hpp"
+#include "io/scene.hpp"
+
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace fiberfem::service {
+
+/// What a command did.
+struct CommandResult {
+  bool accepted = false;
+  std::string reason;  ///< Why it was rejected, or a short account of what it did.
+};
+
+/// A force applied by a command: a total force spread evenly over nodes.
+struct AppliedForce {
+  std::vector<int> nodes;
+  std::vector<core::Vec3> force_n;  ///< Per node, newtons.
+  double until_s = std::numeric_limits<double>::infinity();  ///< Cleared at this simulation time.
+};
+
+class RunControl {
+ public:
+  /// Builds the simulator of `scene`. @throws std::invalid_argument as Simulator does.
+  explicit RunControl(io::Scene scene);
+
+  /// Applies one command now (between steps). Never throws.
+  CommandResult apply(const std::string& kind, const std::string& args_json);
+
+  /// Called before every step: clears timed forces that have expired.
+  void before_step();
+  /// Whether the run should step now (not paused, or steps ordered by `step`); counts
+  /// one ordered step down.
+  bool take_step_permission();
+
+  core::Simulator& simulator() { return *sim_; }
+  const core::Simulator& simulator() const { return *sim_; }
+  const io::Scene& scene() const { return scene_; }
+  bool paused() const { return paused_; }
+  bool shutdown_requested() const { return shutdown_; }
+  /// Bumped by every accepted command that changes the run.
+  unsigned parameter_version() const { return version_; }
+  /// Bumped when the topology's published content (fibers) changed.
+  unsigned topology_version() const { return topology_version_; }
+  const std::map<std::string, AppliedForce>& forces() const { return forces_; }
+  /// Heart rate of the running contraction, beats/min (0 when off).
+  double heart_rate_bpm() const;
+  /// Largest peak tension of the running contraction, Pa.
+  double peak_tension_pa() const;
+  /// The kinds this accepts.
+  static const std::vector<std::string>& kinds();
+
+ private:
+  CommandResult dispatch(const std::string& kind, const std::string& args);
+  void refresh_loads();
+
+  io::Scene scene_;        // as loaded (reset with parameters restores it)
+  std::string scene_doc_;  // the running scene's YAML (commands merged in)
+  std::unique_ptr<core::Simulator> sim_;
+  core::Loads base_loads_;  // the scene's loads with commanded gravity (forces come on top)
+  std::map<std::string, AppliedForce> forces_;
+  bool paused_ = false;
+  long ordered_steps_ = 0;
+  bool shutdown_ = false;
+  unsigned version_ = 0;
+  unsigned topology_version_ = 0;
+  int force_counter_ = 0;
+};
+
+}  // namespace fiberfem::service

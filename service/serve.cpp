@@ -1,0 +1,338 @@
+// The service loop (DESIGN.md section 2): drain commands -> apply at the step boundary ->
+// step -> publish -> status, paced to the wall clock in real-time mode.
+
+#include "service/serve.hpp"
+
+#include "service/dds/bus.hpp"
+#include "service/run_control.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <ostream>
+#include <stdexcept>
+#include <thread>
+#include <unistd.h>
+
+namespace fiberfem::service {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+volatile std::sig_atomic_t g_serve_signal = 0;
+extern "C" void on_serve_signal(int sig) { g_serve_signal = sig; }
+
+double seconds_between(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const size_t m = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(m), v.end());
+  return v[m];
+}
+
+std::string default_run_id(const std::string& scene) {
+  char host[256] = "host";
+  gethostname(host, sizeof host - 1);
+  return scene + "-" + host + "-" + std::to_string(getpid());
+}
+
+// The topology sample's buffers (kept alive while the sample is written).
+struct TopologyBuffers {
+  std::vector<float> rest, fibers;
+  std::vector<int32_t> tets, tris, tri_elems, state_nodes, fixed;
+  std::vector<int16_t> regions;
+  std::vector<char*> names;
+  std::vector<std::string> name_store;
+};
+
+void fill_topology(const RunControl& rc, const std::vector<int>& state_nodes, TopologyBuffers& b) {
+  const core::Simulator& sim = rc.simulator();
+  const core::TetMesh& m = sim.model().mesh;
+  const int nn = m.num_nodes(), ne = m.num_elements();
+  b.rest.resize(3 * static_cast<size_t>(nn));
+  for (int n = 0; n < nn; ++n)
+    for (int d = 0; d < 3; ++d) b.rest[3 * static_cast<size_t>(n) + d] = static_cast<float>(m.rest_positions()(d, n));
+  b.tets.clear();
+  for (const auto& t : m.tets()) b.tets.insert(b.tets.end(), t.begin(), t.end());
+  b.tris.clear();
+  for (const auto& t : m.boundary_triangles()) b.tris.insert(b.tris.end(), t.begin(), t.end());
+  b.tri_elems.assign(m.boundary_triangle_elements().begin(), m.boundary_triangle_elements().end());
+  b.regions.assign(m.regions().begin(), m.regions().end());
+  b.fibers.resize(3 * static_cast<size_t>(ne));
+  const auto& f = sim.model().fibers;
+  for (int e = 0; e < ne; ++e)
+    for (int d = 0; d < 3; ++d)
+      b.fibers[3 * static_cast<size_t>(e) + d] = f.empty() ? (d == 0 ? 1.f : 0.f) : static_cast<float>(f[static_cast<size_t>(e)](d));
+  b.state_nodes.assign(state_nodes.begin(), state_nodes.end());
+  b.fixed.clear();
+  const auto& fixed = sim.model().fixed_dofs;
+  if (!fixed.empty())
+    for (int n = 0; n < nn; ++n)
+      if (fixed[3 * static_cast<size_t>(n)] || fixed[3 * static_cast<size_t>(n) + 1] || fixed[3 * static_cast<size_t>(n) + 2])
+        b.fixed.push_back(n);
+  b.name_store = rc.scene().region_names;
+  b.names.clear();
+  for (auto& s : b.name_store) b.names.push_back(s.data());
+}
+
+}  // namespace
+
+void ServeOptions::validate() const {
+  if (!(real_time_factor > 0 && real_time_factor <= 100))
+    throw std::invalid_argument("real_time_factor must be in (0, 100], got " + std::to_string(real_time_factor));
+  if (!(publish_hz > 0 && publish_hz <= 1000)) throw std::invalid_argument("publish_hz must be in (0, 1000]");
+  if (!(status_hz > 0 && status_hz <= 100)) throw std::invalid_argument("status_hz must be in (0, 100]");
+  if (!(until_s >= 0 && std::isfinite(until_s))) throw std::invalid_argument("until_s must be >= 0");
+}
+
+int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out) {
+  options.validate();
+  RunControl rc(scene);
+  if (options.start_paused) rc.apply("pause", "{}");
+  std::string run_id = options.run_id.empty() ? default_run_id(scene.name) : options.run_id;
+  char host[256] = "host";
+  gethostname(host, sizeof host - 1);
+
+  std::unique_ptr<dds::Participant> pp;
+  try {
+    pp = std::make_unique<dds::Participant>();
+  } catch (const dds::DdsError& e) {
+    out << "fiberfem serve: " << e.what() << "\n";
+    return 1;
+  }
+  dds::Writer<fiberfem_MeshTopology> topology_writer(*pp);
+  dds::Writer<fiberfem_MeshState> state_writer(*pp);
+  dds::Writer<fiberfem_ServiceStatus> status_writer(*pp);
+  dds::Writer<fiberfem_CommandAck> ack_writer(*pp);
+  dds::Reader<fiberfem_Command> command_reader(*pp);
+
+  const core::TetMesh& mesh = rc.simulator().model().mesh;
+  const std::vector<int> state_nodes = options.surface_only ? mesh.boundary_nodes() : std::vector<int>{};
+  std::string hash = scene.hash_sha256, scene_name = scene.name;
+
+  TopologyBuffers tb;
+  auto publish_topology = [&] {
+    fill_topology(rc, state_nodes, tb);
+    fiberfem_MeshTopology t{};
+    t.run_id = run_id.data();
+    t.scene_name = scene_name.data();
+    t.scene_hash = hash.data();
+    t.replay = false;
+    t.num_nodes = static_cast<uint32_t>(mesh.num_nodes());
+    t.num_elements = static_cast<uint32_t>(mesh.num_elements());
+    t.rest_positions = dds::borrow<dds_sequence_float>(tb.rest);
+    t.tets = dds::borrow<dds_sequence_int32>(tb.tets);
+    t.triangles = dds::borrow<dds_sequence_int32>(tb.tris);
+    t.triangle_elements = dds::borrow<dds_sequence_int32>(tb.tri_elems);
+    t.element_regions = dds::borrow<dds_sequence_int16>(tb.regions);
+    t.region_names = dds::borrow<dds_sequence_string>(tb.names);
+    t.fibers = dds::borrow<dds_sequence_float>(tb.fibers);
+    t.state_nodes = dds::borrow<dds_sequence_int32>(tb.state_nodes);
+    t.fixed_nodes = dds::borrow<dds_sequence_int32>(tb.fixed);
+    topology_writer.write(t);
+  };
+  publish_topology();
+  unsigned topology_version = rc.topology_version();
+
+  std::vector<float> pos_buf, act_buf;
+  auto publish_state = [&] {
+    const core::Simulator& sim = rc.simulator();
+    const auto x = sim.positions();
+    if (state_nodes.empty()) {
+      pos_buf.resize(static_cast<size_t>(x.size()));
+      for (Eigen::Index i = 0; i < x.size(); ++i) pos_buf[static_cast<size_t>(i)] = static_cast<float>(x.data()[i]);
+    } else {
+      pos_buf.resize(3 * state_nodes.size());
+      for (size_t k = 0; k < state_nodes.size(); ++k)
+        for (int d = 0; d < 3; ++d) pos_buf[3 * k + d] = static_cast<float>(x(d, state_nodes[k]));
+    }
+    // Activation: tension over its region's peak, 0..1 (empty when contraction is off).
+    const auto& act = sim.active_tension();
+    const auto& peaks = sim.model().contraction.region_peak_pa;
+    act_buf.resize(act.size());
+    for (size_t e = 0; e < act.size(); ++e) {
+      const double peak = peaks.empty() ? 0.0 : peaks[static_cast<size_t>(mesh.regions()[e])];
+      act_buf[e] = peak > 0 ? static_cast<float>(act[e] / peak) : 0.f;
+    }
+    fiberfem_MeshState s{};
+    s.run_id = run_id.data();
+    s.frame = static_cast<uint64_t>(sim.step_count());
+    s.time_s = sim.time_s();
+    s.parameter_version = rc.parameter_version();
+    s.positions = dds::borrow<dds_sequence_float>(pos_buf);
+    s.activation = dds::borrow<dds_sequence_float>(act_buf);
+    state_writer.write(s);
+  };
+
+  g_serve_signal = 0;
+  struct SignalGuard {
+    void (*old_int)(int), (*old_term)(int);
+    SignalGuard() : old_int(std::signal(SIGINT, on_serve_signal)), old_term(std::signal(SIGTERM, on_serve_signal)) {}
+    ~SignalGuard() {
+      std::signal(SIGINT, old_int);
+      std::signal(SIGTERM, old_term);
+    }
+  } signal_guard;
+
+  out << "fiberfem serve: run '" << run_id << "', scene '" << scene.name << "' (" << options.source << "), "
+      << mesh.num_elements() << " tets, " << mesh.num_nodes() << " nodes, "
+      << (options.realtime ? "real time x" + std::to_string(options.real_time_factor).substr(0, 4) : std::string("as fast as possible"))
+      << ", states at up to " << options.publish_hz << " Hz\n"
+      << std::flush;
+
+  // Status bookkeeping over one status period.
+  std::vector<double> step_ms, rot_ms, asm_ms, solve_ms, pub_ms;
+  core::StepReport last{};
+  unsigned recovered = 0, failed = 0;
+  std::string last_message, state_name = "running";
+  long steps_in_period = 0;
+  double sim_t_period = rc.simulator().time_s();
+  const auto t_start = Clock::now();
+  auto t_period = t_start, t_last_state = t_start - std::chrono::hours(1);
+  auto pace_wall = t_start;
+  double pace_sim = rc.simulator().time_s();
+  bool state_dirty = true;
+
+  auto publish_status = [&](const std::string& state) {
+    const auto now = Clock::now();
+    const double wall = std::max(1e-9, seconds_between(t_period, now));
+    const core::Simulator& sim = rc.simulator();
+    fiberfem_ServiceStatus st{};
+    std::string scene_s = scene_name, host_s = host, mode = options.realtime ? "realtime" : "fast";
+    std::string state_s = state, msg = last_message, rec;
+    st.run_id = run_id.data();
+    st.scene_name = scene_s.data();
+    st.host = host_s.data();
+    st.pid = getpid();
+    st.state = state_s.data();
+    st.mode = mode.data();
+    st.replay = false;
+    st.frame = static_cast<uint64_t>(sim.step_count());
+    st.time_s = sim.time_s();
+    st.frames_per_second = static_cast<double>(steps_in_period) / wall;
+    st.real_time_factor = (sim.time_s() - sim_t_period) / wall;
+    st.step_ms = median(step_ms);
+    st.rotations_ms = median(rot_ms);
+    st.assembly_ms = median(asm_ms);
+    st.solve_ms = median(solve_ms);
+    st.publish_ms = median(pub_ms);
+    st.record_ms = 0;
+    st.solver_iterations = last.solver_iterations;
+    st.solver_residual = last.solver_residual;
+    st.inverted_elements = last.inverted_elements;
+    st.kinetic_energy_j = last.kinetic_energy_j;
+    st.elastic_energy_j = last.elastic_energy_j;
+    st.recovered_steps = recovered;
+    st.failed_steps = failed;
+    st.last_message = msg.data();
+    st.parameter_version = rc.parameter_version();
+    st.heart_rate_bpm = rc.heart_rate_bpm();
+    st.peak_tension_pa = rc.peak_tension_pa();
+    st.dt_s = sim.settings().dt_s;
+    st.recording = rec.data();
+    st.recorded_frames = 0;
+    status_writer.write(st);
+    if (options.status_line) {
+      std::fprintf(stderr, "\r%-8s t=%8.3f s  frame %7ld  %6.1f steps/s  x%.2f real time  step %.2f ms  iters %3d  v%u   ",
+                   state.c_str(), sim.time_s(), sim.step_count(), st.frames_per_second, st.real_time_factor, st.step_ms,
+                   last.solver_iterations, rc.parameter_version());
+      std::fflush(stderr);
+    }
+    step_ms.clear(), rot_ms.clear(), asm_ms.clear(), solve_ms.clear(), pub_ms.clear();
+    steps_in_period = 0;
+    sim_t_period = sim.time_s();
+    t_period = now;
+  };
+  publish_status("starting");
+
+  std::string stop_reason = "shut down by command";
+  for (;;) {
+    // 1. Commands, at the step boundary.
+    command_reader.take([&](const fiberfem_Command& c, const dds_sample_info_t&) {
+      if (dds::str(c.run_id) != run_id) return;  // another run's
+      const CommandResult r = rc.apply(dds::str(c.kind), dds::str(c.args));
+      fiberfem_CommandAck ack{};
+      std::string reason = r.reason;
+      ack.run_id = run_id.data();
+      ack.command_id = c.command_id;
+      ack.client_id = c.client_id;
+      ack.accepted = r.accepted;
+      ack.reason = reason.data();
+      ack.frame = static_cast<uint64_t>(rc.simulator().step_count());
+      ack.parameter_version = rc.parameter_version();
+      ack_writer.write(ack);
+      if (!r.accepted) last_message = "rejected " + dds::str(c.kind) + ": " + r.reason;
+      state_dirty = true;
+    });
+    if (rc.topology_version() != topology_version) {
+      publish_topology();
+      topology_version = rc.topology_version();
+    }
+    if (rc.shutdown_requested()) break;
+    if (g_serve_signal) {
+      stop_reason = std::string("stopped by ") + (g_serve_signal == SIGINT ? "SIGINT" : "SIGTERM");
+      break;
+    }
+    if (options.until_s > 0 && rc.simulator().time_s() >= options.until_s - 1e-9) {
+      stop_reason = "reached t = " + std::to_string(options.until_s) + " s";
+      break;
+    }
+
+    // 2. Step (unless paused).
+    bool stepped = false;
+    if (rc.take_step_permission()) {
+      rc.before_step();
+      last = rc.simulator().step();
+      stepped = true;
+      ++steps_in_period;
+      step_ms.push_back(last.time.total_s * 1e3);
+      rot_ms.push_back(last.time.rotations_s * 1e3);
+      asm_ms.push_back(last.time.assembly_s * 1e3);
+      solve_ms.push_back(last.time.solve_s * 1e3);
+      if (last.status == core::StepStatus::recovered) ++recovered, state_name = "recovered", last_message = last.message;
+      else if (last.status == core::StepStatus::failed) ++failed, state_name = "failed", last_message = last.message;
+      else state_name = "running";
+      state_dirty = true;
+    }
+    const auto now = Clock::now();
+
+    // 3. Publish the state at most publish_hz (and at least every second, for the deadline).
+    const double since_state = seconds_between(t_last_state, now);
+    if ((state_dirty && since_state >= 1.0 / options.publish_hz) || since_state >= 1.0) {
+      const auto p0 = Clock::now();
+      publish_state();
+      pub_ms.push_back(seconds_between(p0, Clock::now()) * 1e3);
+      t_last_state = now;
+      state_dirty = false;
+    }
+    if (seconds_between(t_period, now) >= 1.0 / options.status_hz) publish_status(rc.paused() ? "paused" : state_name);
+
+    // 4. Pace: real time waits for the wall clock (listening for commands meanwhile);
+    // paused waits for a command.
+    if (!stepped) {
+      command_reader.wait(std::chrono::milliseconds(20));
+      pace_wall = Clock::now();
+      pace_sim = rc.simulator().time_s();
+    } else if (options.realtime) {
+      const double ahead = (rc.simulator().time_s() - pace_sim) / options.real_time_factor - seconds_between(pace_wall, Clock::now());
+      if (ahead > 0) {
+        command_reader.wait(std::chrono::nanoseconds(static_cast<long long>(ahead * 1e9)));
+      } else if (ahead < -0.25) {  // behind by more than 0.25 s: re-anchor (report, don't catch up)
+        pace_wall = Clock::now();
+        pace_sim = rc.simulator().time_s();
+      }
+    }
+  }
+  publish_state();
+  publish_status("stopped");
+  if (options.status_line) std::fprintf(stderr, "\n");
+  const double wall = seconds_between(t_start, Clock::now());
+  out << "fiberfem serve: " << stop_reason << "; " << rc.simulator().step_count() << " steps, t = " << rc.simulator().time_s()
+      << " s in " << wall << " s wall, " << recovered << " steps recovered, " << failed << " failed\n";
+  return 0;
+}
+
+}  // namespace fiberfem::service

@@ -1,0 +1,192 @@
+// Commands against a running scene (service/run_control.hpp), without DDS: every bad
+// command is refused with a reason naming what is wrong and leaves the run bit-for-bit as
+// it was; accepted ones do what an independent computation says they should.
+
+#include "service/run_control.hpp"
+
+#include "core/static_solver.hpp"
+#include "io/scene.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace fiberfem::service {
+namespace {
+
+const char* kBeam = R"(
+name: beam
+mesh: {generator: box, size: [0.1, 0.01, 0.01], cells: [10, 2, 2]}
+regions:
+  - name: tissue
+    select: all
+    material: {E_L: 60.0e3, E_T: 20.0e3, nu_LT: 0.25, nu_T: 0.45, G_L: 8.0e3, density: 1000.0}
+    damping: {mass: 40.0, stiffness: 0.0}
+fibers: {uniform: [1, 0, 0]}
+fixed:
+  - plane: {axis: x, value: 0.0}
+loads: {gravity: [0, 0, -9.81]}
+solver: {dt: 0.01}
+)";
+
+io::Scene beam() { return io::parse_scene(kBeam, "beam"); }
+
+core::Positions run(RunControl& rc, int steps) {
+  for (int i = 0; i < steps; ++i) {
+    rc.before_step();
+    EXPECT_NE(rc.simulator().step().status, core::StepStatus::failed);
+  }
+  return rc.simulator().positions();
+}
+
+TEST(RunControl, BadCommandsAreRefusedWithAReasonAndChangeNothing) {
+  struct Bad {
+    const char* kind;
+    const char* args;
+    const char* reason_has;
+  };
+  const Bad bad[] = {
+      {"warp_drive", "{}", "unknown command 'warp_drive'"},
+      {"set_gravity", "{gravity: [0, 0", "not valid JSON"},
+      {"set_gravity", "[1, 2, 3]", "JSON object"},
+      {"set_gravity", R"({"gravity": [0, 0, .nan]})", "gravity[2]"},
+      {"set_gravity", R"({"gravity": [0, 0, 1e999]})", "gravity[2]"},
+      {"set_gravity", R"({"gravity": [0, 0]})", "three numbers"},
+      {"set_gravity", R"({"g": [0, 0, 1]})", "unknown argument 'g'"},
+      {"set_time_step", R"({"dt": -0.01})", "'dt'"},
+      {"set_time_step", R"({"dt": "fast"})", "'dt' must be a number"},
+      {"set_material", R"({"region": "bone", "E_L": 1e5})", "no region 'bone'"},
+      {"set_material", R"({"nu_T": 1.5})", "nu_T"},
+      {"set_material", R"({"E": 1e5})", "nu"},
+      {"set_damping", R"({"mass": -1})", "'mass'"},
+      {"set_contraction", R"({"heart_rate": 0})", "heart_rate"},
+      {"set_contraction", R"({"peak_tension": 1000, "twitch": {"tau1": -1}})", "tau1"},
+      {"set_fibers", R"({"uniform": [0, 0, 0]})", "fibers"},
+      {"set_solver", R"({"method": "magic"})", "method"},
+      {"set_solver", R"({"tolerance": 2})", "tolerance"},
+      {"apply_force", R"({"target": {"node": 100000}, "force": [0, 0, 1]})", "target.node"},
+      {"apply_force", R"({"target": {"node_set": "nowhere"}, "force": [0, 0, 1]})", "no node set 'nowhere'"},
+      {"apply_force", R"({"target": {"node": 3}})", "exactly one of 'force'"},
+      {"apply_force", R"({"target": {"node": 3}, "magnitude": 1})", "along: fibers"},
+      {"clear_force", R"({"name": "ghost"})", "no force named 'ghost'"},
+      {"step", R"({"count": 0})", "'count'"},
+      {"step", R"({"count": 1.5})", "whole number"},
+      {"pause", R"({"now": true})", "takes none"},
+  };
+  RunControl rc(beam());
+  run(rc, 3);
+  for (const Bad& b : bad) {
+    const CommandResult r = rc.apply(b.kind, b.args);
+    EXPECT_FALSE(r.accepted) << b.kind << " " << b.args;
+    EXPECT_NE(r.reason.find(b.reason_has), std::string::npos) << b.kind << " " << b.args << ": " << r.reason;
+  }
+  EXPECT_EQ(rc.parameter_version(), 0u);
+  EXPECT_FALSE(rc.paused());
+  // The run goes on exactly as an untouched one.
+  RunControl untouched(beam());
+  run(untouched, 3);
+  const core::Positions a = run(rc, 20), b = run(untouched, 20);
+  EXPECT_EQ((a - b).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// A force spread over the free end, held until the damped beam settles, must give the
+// static equilibrium of the same load (the static Newton solver, an independent path).
+TEST(RunControl, AppliedForceSettlesToTheStaticEquilibriumOfThatLoad) {
+  io::Scene sc = io::parse_scene(kBeam, "beam", "", {"loads.gravity=[0, 0, 0]", "regions[0].damping.mass=60"});
+  RunControl rc(sc);
+  const CommandResult r = rc.apply("apply_force", R"({"name": "push", "target": {"node_set": "xmax"}, "force": [0, 0, -2e-3]})");
+  ASSERT_TRUE(r.accepted) << r.reason;
+  const core::Positions x_dyn = run(rc, 600);  // 6 s at 60 1/s mass damping
+
+  core::Model m = sc.model;
+  const auto& xmax = m.mesh.node_set("xmax");
+  for (int n : xmax) m.loads.point_forces.push_back({n, core::Vec3(0, 0, -2e-3 / static_cast<double>(xmax.size()))});
+  core::Positions x_static;
+  ASSERT_TRUE(core::solve_static(m, x_static).converged);
+  const double tip = (x_static - m.mesh.rest_positions()).col(xmax[0]).norm();
+  EXPECT_GT(tip, 1e-3);  // a real deflection
+  EXPECT_LT((x_dyn - x_static).cwiseAbs().maxCoeff(), 1e-3 * tip);
+
+  // Cleared, it swings back to rest.
+  ASSERT_TRUE(rc.apply("clear_force", R"({"name": "push"})").accepted);
+  const core::Positions x_back = run(rc, 600);
+  EXPECT_LT((x_back - m.mesh.rest_positions()).cwiseAbs().maxCoeff(), 1e-3 * tip);
+}
+
+TEST(RunControl, TimedForceExpiresAfterItsDuration) {
+  RunControl rc(io::parse_scene(kBeam, "beam", "", {"loads.gravity=[0, 0, 0]"}));
+  ASSERT_TRUE(rc.apply("apply_force", R"({"name": "tap", "target": {"point": [0.1, 0.005, 0.005]}, "force": [0, 0, -1e-3], "duration": 0.05})").accepted);
+  EXPECT_EQ(rc.forces().count("tap"), 1u);
+  run(rc, 5);  // t = 0.05 s
+  rc.before_step();
+  EXPECT_EQ(rc.forces().count("tap"), 0u);
+}
+
+TEST(RunControl, MaterialCommandMergesIntoTheRegionsMaterial) {
+  RunControl rc(beam());
+  ASSERT_TRUE(rc.apply("set_material", R"({"region": "tissue", "E_L": 120e3})").accepted);
+  core::EngineeringConstants c{120e3, 20e3, 0.45, 0.25, 8e3};
+  const core::Material expect = core::Material::from_engineering(c, 1000.0);
+  const core::Material& got = rc.simulator().model().region_materials[0];
+  EXPECT_LT((got.stiffness() - expect.stiffness()).norm(), 1e-9 * expect.stiffness().norm());
+  // Switching to the isotropic form drops the engineering keys.
+  ASSERT_TRUE(rc.apply("set_material", R"({"E": 50e3, "nu": 0.3})").accepted);
+  const core::Material iso = core::Material::isotropic(50e3, 0.3, 1000.0);
+  EXPECT_LT((rc.simulator().model().region_materials[0].stiffness() - iso.stiffness()).norm(),
+            1e-9 * iso.stiffness().norm());
+  EXPECT_EQ(rc.parameter_version(), 2u);
+}
+
+TEST(RunControl, PauseStepResumeAndTimeStep) {
+  RunControl rc(beam());
+  ASSERT_TRUE(rc.apply("pause", "").accepted);
+  EXPECT_FALSE(rc.take_step_permission());
+  ASSERT_TRUE(rc.apply("step", R"({"count": 2})").accepted);
+  EXPECT_TRUE(rc.take_step_permission());
+  EXPECT_TRUE(rc.take_step_permission());
+  EXPECT_FALSE(rc.take_step_permission());
+  ASSERT_TRUE(rc.apply("resume", "{}").accepted);
+  EXPECT_TRUE(rc.take_step_permission());
+  ASSERT_TRUE(rc.apply("set_time_step", R"({"dt": 0.004})").accepted);
+  const double t0 = rc.simulator().time_s();
+  rc.simulator().step();
+  EXPECT_NEAR(rc.simulator().time_s() - t0, 0.004, 1e-15);
+  ASSERT_TRUE(rc.apply("shutdown", "{}").accepted);
+  EXPECT_TRUE(rc.shutdown_requested());
+}
+
+// A heart-rate change keeps the beat under way (no jump in the tension) and the beats
+// after it come at the new period.
+TEST(RunControl, HeartRateChangeKeepsThePhaseAndSetsTheNewPeriod) {
+  io::Scene sc = io::parse_scene(kBeam, "beam", "",
+                                 {"loads.gravity=[0, 0, 0]", "solver.dt=0.002",
+                                  "contraction={peak_tension: 500, heart_rate: 60, twitch: {shape: sine, systole: 0.3}}"});
+  RunControl rc(sc);
+  std::vector<double> t, a;
+  auto sample = [&](int steps) {
+    for (int i = 0; i < steps; ++i) {
+      rc.simulator().step();
+      t.push_back(rc.simulator().time_s());
+      a.push_back(rc.simulator().active_tension()[0]);
+    }
+  };
+  sample(1050);  // t = 2.1 s: 0.1 s into the third beat (beats start at 0, 1, 2 s)
+  const double before = a.back();
+  ASSERT_TRUE(rc.apply("set_contraction", R"({"heart_rate": 120})").accepted);
+  EXPECT_NEAR(rc.heart_rate_bpm(), 120.0, 1e-9);
+  sample(1);
+  // No jump: the change of tension over this step is that of a step of the sine twitch.
+  EXPECT_LT(std::abs(a.back() - before), 500.0 * M_PI / 0.3 * 0.002 * 1.01);
+  sample(1500);
+  // Beat onsets (tension rising from zero) after the change are 0.5 s apart.
+  std::vector<double> onsets;
+  for (size_t i = 1; i < a.size(); ++i)
+    if (a[i - 1] == 0.0 && a[i] > 0.0 && t[i] > 2.2) onsets.push_back(t[i]);
+  ASSERT_GE(onsets.size(), 3u);
+  for (size_t k = 1; k < onsets.size(); ++k) EXPECT_NEAR(onsets[k] - onsets[k - 1], 0.5, 0.0021);
+  // The first new beat starts one new period after the beat under way began (at 2 s).
+  EXPECT_NEAR(onsets[0], 2.5, 0.0021);
+}
+
+}  // namespace
+}  // namespace fiberfem::service
