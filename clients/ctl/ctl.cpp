@@ -3,11 +3,13 @@
 // for the acknowledgement: exit 0 when accepted, 3 when rejected, 4 on no answer.
 
 #include "clients/ctl/client.hpp"
+#include "clients/ctl/cycle.hpp"
 #include "service/commands.hpp"
 
 #include <CLI/CLI.hpp>
 
 #include <csignal>
+#include <fstream>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -33,6 +35,8 @@ struct CtlArgs {
   int count = 0;
   // send
   std::string kind, args = "{}";
+  // play
+  std::string script, log_file;
 };
 
 void print_status_line(const clients::RunStatus& s, bool same_line) {
@@ -124,6 +128,20 @@ int run_ctl(const std::string& what, CtlArgs& a) {
                 t->replay ? " (replay)" : "");
     return 0;
   }
+  if (what == "play") {
+    clients::CycleScript script = clients::load_cycle(a.script);
+    if (a.log_file.empty()) return clients::play_cycle(client, run, std::move(script), std::cout);
+    std::ofstream log(a.log_file);
+    if (!log) throw std::runtime_error("cannot write the log " + a.log_file);
+    struct Tee : std::streambuf {
+      std::streambuf *a, *b;
+      int overflow(int c) override { return c == EOF ? !EOF : (a->sputc(static_cast<char>(c)), b->sputc(static_cast<char>(c))); }
+      int sync() override { return a->pubsync() | b->pubsync(); }
+    } tee;
+    tee.a = std::cout.rdbuf(), tee.b = log.rdbuf();
+    std::ostream both(&tee);
+    return clients::play_cycle(client, run, std::move(script), both);
+  }
   // send
   const clients::Ack ack = client.send(run, a.kind, a.args, timeout);
   std::printf("%s %s: %s (frame %lu, parameter version %u)\n", a.kind.c_str(), ack.accepted ? "accepted" : "rejected",
@@ -154,7 +172,10 @@ void add_ctl_command(CLI::App& app, int& exit_code) {
   auto* send = ctl->add_subcommand("send", "Send a command and wait for its acknowledgement (docs/commands.md)");
   send->add_option("kind", a->kind, "Command kind, e.g. pause, apply_force, set_contraction")->required();
   send->add_option("args", a->args, "Arguments as a JSON object")->capture_default_str();
-  for (CLI::App* sub : {list, status, echo, topo, send}) {
+  auto* play = ctl->add_subcommand("play", "Play a cycle script (docs/cycles.md) against a run");
+  play->add_option("script", a->script, "Cycle script (YAML), e.g. configs/cycles/exercise.yaml")->required()->check(CLI::ExistingFile);
+  play->add_option("--log", a->log_file, "Also write the log of actions here");
+  for (CLI::App* sub : {list, status, echo, topo, send, play}) {
     const std::string name = sub->get_name();
     sub->callback([a, name, &exit_code] {
       try {

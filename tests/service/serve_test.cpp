@@ -199,6 +199,53 @@ TEST_F(Serve, CtlExitsNonZeroOnRejection) {
   EXPECT_NE(gone.output.find("no run 'nobody'"), std::string::npos) << gone.output;
 }
 
+// A cycle script played by the real `fiberfem ctl play`: every action acknowledged, and
+// its effects visible in what the service publishes.
+TEST_F(Serve, CycleScriptPlaysAndItsEffectsShowInTheStates) {
+  const std::string run = unique("cycle");
+  auto service = start(run, {"--builtin", "cantilever", "--publish-hz", "60", "--set", "loads.gravity=[0, 0, 0]", "--set",
+                             "contraction={peak_tension: 300, heart_rate: 60, twitch: {shape: sine, systole: 0.15}}"});
+  write_file(dir_.file("script.yaml"), R"(
+name: test-cycle
+actions:
+  - at: 0.1
+    set_contraction: {heart_rate: 120}
+  - from: 0.2
+    to: 0.6
+    ramp: {key: peak_tension, from: 300, to: 700}
+    steps: 4
+    command: set_contraction
+  - at: 0.7
+    apply_force: {name: lift, target: {node_set: xmax}, force: [0, 0, 0.01]}
+)");
+  Client client;
+  ASSERT_EQ(client.resolve_run(run, 20s), run) << service->output();
+  const ProcessResult play = run_process({FIBERFEM_BIN, "ctl", "--run", run, "play", dir_.file("script.yaml"), "--log", dir_.file("log.txt")});
+  ASSERT_EQ(play.exit_code, 0) << play.output;
+  const std::string log = read_file(dir_.file("log.txt"));
+  size_t accepted = 0;
+  for (size_t p = log.find("accepted"); p != std::string::npos; p = log.find("accepted", p + 1)) ++accepted;
+  EXPECT_EQ(accepted, 1u + 5u + 1u) << log;
+  // The status reports the end of the ramp and the new rate (once it carries all seven
+  // accepted commands: status is published twice a second).
+  auto st = client.status(run, 5s);
+  for (int i = 0; i < 20 && st && st->parameter_version < 7; ++i) st = client.status(run, 5s);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(st->parameter_version, 7u);
+  EXPECT_DOUBLE_EQ(st->peak_tension_pa, 700.0);
+  EXPECT_DOUBLE_EQ(st->heart_rate_bpm, 120.0);
+  // The upward force lifts the free end (gravity is off): its z rises by a visible amount.
+  const auto topo = client.topology(run, 5s);
+  ASSERT_TRUE(topo);
+  std::this_thread::sleep_for(1500ms);
+  const auto s = client.next_state(run, 5s);
+  ASSERT_TRUE(s);
+  double lift = 0;
+  for (size_t n = 0; n < topo->num_nodes; ++n)
+    if (std::abs(topo->rest_positions[3 * n] - 0.1f) < 1e-6f) lift = std::max<double>(lift, s->positions[3 * n + 2] - topo->rest_positions[3 * n + 2]);
+  EXPECT_GT(lift, 1e-3) << "free end z rise " << lift;
+}
+
 // A third-party tool (the `cyclonedds` CLI of the PyPI wheel, a different DDS build) sees
 // the topics and decodes a state sample through XTypes.
 TEST_F(Serve, ThirdPartyCycloneddsToolListsTopicsAndReadsAState) {
