@@ -40,10 +40,11 @@ else
 fi
 
 # Python packages (tests and tools) in a virtual environment beside the build.
-if ! .venv/bin/python -c "import meshio, gmsh, cyclonedds" 2>/dev/null; then
-  echo "setup: creating .venv with scripts/requirements.txt"
+if ! .venv/bin/python -c "import meshio, gmsh, cyclonedds, fiberfem_client" 2>/dev/null; then
+  echo "setup: creating .venv with scripts/requirements.txt and the Python client (clients/python)"
   python3 -m venv .venv
   .venv/bin/pip install -q -r scripts/requirements.txt
+  .venv/bin/pip install -q -e clients/python
 else
   echo "setup: .venv ready"
 fi

@@ -6,6 +6,8 @@
 #include "io/scene.hpp"
 #include "process_support.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -244,6 +246,32 @@ actions:
   for (size_t n = 0; n < topo->num_nodes; ++n)
     if (std::abs(topo->rest_positions[3 * n] - 0.1f) < 1e-6f) lift = std::max<double>(lift, s->positions[3 * n + 2] - topo->rest_positions[3 * n + 2]);
   EXPECT_GT(lift, 1e-3) << "free end z rise " << lift;
+}
+
+// The Python client (clients/python, installed into .venv) talks to the real service.
+TEST_F(Serve, PythonClientSendsCommandsAndReceivesStatesAsArrays) {
+  const std::string python = std::string(FIBERFEM_SOURCE_DIR) + "/.venv/bin/python";
+  const std::string run = unique("python");
+  auto service = start(run, {"--builtin", "cantilever"});
+  Client client;
+  ASSERT_EQ(client.resolve_run(run, 20s), run) << service->output();
+  const ProcessResult py = run_process({"timeout", "60", python, std::string(FIBERFEM_SOURCE_DIR) + "/tests/service/python_client_check.py", run});
+  ASSERT_EQ(py.exit_code, 0) << py.output;
+  const nlohmann::json j = nlohmann::json::parse(py.output.substr(py.output.find('{')));
+  const io::Scene scene = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/demo-cantilever.yaml");
+  EXPECT_EQ(j["nodes"], scene.model.mesh.num_nodes());
+  EXPECT_EQ(j["elements"], scene.model.mesh.num_elements());
+  EXPECT_NEAR(j["rest_sum"].get<double>(), scene.model.mesh.rest_positions().sum(), 1e-4);
+  EXPECT_EQ(j["positions_shape"], nlohmann::json::array({scene.model.mesh.num_nodes(), 3}));
+  EXPECT_TRUE(j["ok_accepted"].get<bool>());
+  EXPECT_FALSE(j["bad_accepted"].get<bool>());
+  EXPECT_NE(j["bad_reason"].get<std::string>().find("dt"), std::string::npos);
+  EXPECT_EQ(j["version_after"], j["ok_version"]);
+  // The C++ client sees the Python client's command in the run's status.
+  auto st = client.status(run, 5s);
+  for (int i = 0; i < 10 && st && st->parameter_version < 1; ++i) st = client.status(run, 5s);
+  ASSERT_TRUE(st);
+  EXPECT_EQ(st->parameter_version, 1u);
 }
 
 // A third-party tool (the `cyclonedds` CLI of the PyPI wheel, a different DDS build) sees

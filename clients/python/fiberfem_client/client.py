@@ -1,0 +1,207 @@
+"""A small client of fiberfem services (docs/python-client.md).
+
+    from fiberfem_client import Client
+    c = Client()
+    runs = c.discover()                      # {run_id: ServiceStatus}
+    run = c.resolve_run()                    # the only run, or pass run_id
+    topo = c.topology(run)                   # rest positions (N, 3), tets (E, 4), ...
+    for st in c.states(run, count=10):       # positions (n, 3) float32, activation (E,)
+        print(st.frame, st.time_s, st.positions[0])
+    ack = c.send(run, "set_contraction", {"heart_rate": 90})
+
+The topics and QoS are those of service/dds/bus.cpp; use the same CYCLONEDDS_URI as
+the service (configs/dds/loopback.xml on one host).
+"""
+
+import json
+import os
+import time
+from dataclasses import dataclass
+from typing import Dict, Iterator, Optional
+
+import numpy as np
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.pub import DataWriter
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+from .types import Command, CommandAck, MeshState, MeshTopology, ServiceStatus
+
+_RELIABLE = Policy.Reliability.Reliable(duration(seconds=10))
+QOS = {
+    "topology": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1)),
+    "state": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
+    "command": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepAll),
+    "ack": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepAll),
+    "status": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
+}
+TOPIC_NAMES = {
+    "topology": "fiberfem_mesh_topology",
+    "state": "fiberfem_mesh_state",
+    "command": "fiberfem_command",
+    "ack": "fiberfem_command_ack",
+    "status": "fiberfem_status",
+}
+
+
+class FiberfemError(RuntimeError):
+    """No service, no answer, or several runs where one was meant."""
+
+
+@dataclass
+class Ack:
+    accepted: bool
+    reason: str
+    frame: int
+    parameter_version: int
+
+
+@dataclass
+class State:
+    run_id: str
+    frame: int
+    time_s: float
+    parameter_version: int
+    positions: np.ndarray   # (n, 3) float32, metres (n = state nodes or all nodes)
+    activation: np.ndarray  # (E,) float32, active tension / peak, 0..1
+
+
+@dataclass
+class Topology:
+    run_id: str
+    scene_name: str
+    scene_hash: str
+    replay: bool
+    rest_positions: np.ndarray     # (N, 3) float32, metres
+    tets: np.ndarray               # (E, 4) int32
+    triangles: np.ndarray          # (F, 3) int32, boundary, outward
+    triangle_elements: np.ndarray  # (F,) int32
+    element_regions: np.ndarray    # (E,) int16
+    region_names: list
+    fibers: np.ndarray             # (E, 3) float32
+    state_nodes: np.ndarray        # nodes the states carry; empty: all
+    fixed_nodes: np.ndarray
+
+
+class Client:
+    """One DDS participant with readers of status, acks, states and topology and a writer of commands."""
+
+    def __init__(self, client_id: Optional[str] = None, domain_id: int = 0):
+        self.client_id = client_id or f"py-{os.getpid()}"
+        self._next = 0
+        self.dp = DomainParticipant(domain_id)
+        t = {k: Topic(self.dp, TOPIC_NAMES[k], cls, qos=QOS[k])
+             for k, cls in (("topology", MeshTopology), ("state", MeshState), ("command", Command),
+                            ("ack", CommandAck), ("status", ServiceStatus))}
+        self._status = DataReader(self.dp, t["status"], qos=QOS["status"])
+        self._ack = DataReader(self.dp, t["ack"], qos=QOS["ack"])
+        self._state = DataReader(self.dp, t["state"], qos=QOS["state"])
+        self._topology = DataReader(self.dp, t["topology"], qos=QOS["topology"])
+        self._command = DataWriter(self.dp, t["command"], qos=QOS["command"])
+        self.runs: Dict[str, ServiceStatus] = {}
+
+    def _poll_status(self):
+        for s in self._status.take(N=64):
+            if isinstance(s, ServiceStatus):
+                self.runs[s.run_id] = s
+
+    def discover(self, wait_s: float = 1.5) -> Dict[str, ServiceStatus]:
+        """Runs seen on the domain within wait_s: {run_id: newest ServiceStatus}."""
+        self.runs = {}
+        end = time.monotonic() + wait_s
+        while time.monotonic() < end:
+            self._poll_status()
+            time.sleep(0.05)
+        return dict(self.runs)
+
+    def resolve_run(self, run_id: Optional[str] = None, wait_s: float = 10.0) -> str:
+        end = time.monotonic() + wait_s
+        while time.monotonic() < end:
+            self._poll_status()
+            if run_id and run_id in self.runs:
+                return run_id
+            if not run_id and len(self.runs) == 1:
+                time.sleep(0.6)
+                self._poll_status()
+                if len(self.runs) == 1:
+                    return next(iter(self.runs))
+            time.sleep(0.05)
+        if run_id:
+            raise FiberfemError(f"no run '{run_id}' seen on the domain")
+        if not self.runs:
+            raise FiberfemError("no fiberfem service seen on the domain")
+        raise FiberfemError("several runs on the domain, give run_id: " + " ".join(sorted(self.runs)))
+
+    def status(self, run_id: str, wait_s: float = 5.0) -> ServiceStatus:
+        end = time.monotonic() + wait_s
+        while time.monotonic() < end:
+            for s in self._status.take(N=64):
+                if isinstance(s, ServiceStatus):
+                    self.runs[s.run_id] = s
+                    if s.run_id == run_id:
+                        return s
+            time.sleep(0.02)
+        raise FiberfemError(f"no status from '{run_id}' in {wait_s} s")
+
+    def topology(self, run_id: str, wait_s: float = 10.0) -> Topology:
+        end = time.monotonic() + wait_s
+        while time.monotonic() < end:
+            for t in self._topology.take(N=16):
+                if isinstance(t, MeshTopology) and t.run_id == run_id:
+                    return Topology(
+                        t.run_id, t.scene_name, t.scene_hash, t.replay,
+                        np.asarray(t.rest_positions, dtype=np.float32).reshape(-1, 3),
+                        np.asarray(t.tets, dtype=np.int32).reshape(-1, 4),
+                        np.asarray(t.triangles, dtype=np.int32).reshape(-1, 3),
+                        np.asarray(t.triangle_elements, dtype=np.int32),
+                        np.asarray(t.element_regions, dtype=np.int16),
+                        list(t.region_names),
+                        np.asarray(t.fibers, dtype=np.float32).reshape(-1, 3),
+                        np.asarray(t.state_nodes, dtype=np.int32),
+                        np.asarray(t.fixed_nodes, dtype=np.int32))
+            time.sleep(0.02)
+        raise FiberfemError(f"no topology from '{run_id}' in {wait_s} s")
+
+    def next_state(self, run_id: str, after_frame: int = -1, wait_s: float = 10.0) -> State:
+        """The newest state of run_id with a frame after after_frame."""
+        end = time.monotonic() + wait_s
+        while time.monotonic() < end:
+            newest = None
+            for s in self._state.take(N=16):
+                if isinstance(s, MeshState) and s.run_id == run_id and s.frame > after_frame:
+                    newest = s
+            if newest is not None:
+                return State(newest.run_id, newest.frame, newest.time_s, newest.parameter_version,
+                             np.asarray(newest.positions, dtype=np.float32).reshape(-1, 3),
+                             np.asarray(newest.activation, dtype=np.float32))
+            time.sleep(0.002)
+        raise FiberfemError(f"no state from '{run_id}' in {wait_s} s")
+
+    def states(self, run_id: str, count: Optional[int] = None, wait_s: float = 10.0) -> Iterator[State]:
+        """Successive states (the newest each time; a slow consumer skips frames)."""
+        last, n = -1, 0
+        while count is None or n < count:
+            s = self.next_state(run_id, last, wait_s)
+            last, n = s.frame, n + 1
+            yield s
+
+    def send(self, run_id: str, kind: str, args: Optional[dict] = None, wait_s: float = 10.0) -> Ack:
+        """Sends a command (docs/commands.md) and waits for its acknowledgement."""
+        end = time.monotonic() + wait_s
+        self._poll_status()
+        while len(self._command.get_matched_subscriptions()) < max(1, len(self.runs)) and time.monotonic() < end:
+            time.sleep(0.01)
+        if not self._command.get_matched_subscriptions():
+            raise FiberfemError(f"no service matched the command topic (is '{run_id}' running?)")
+        self._next += 1
+        cid = f"{self.client_id}-{self._next}"
+        self._command.write(Command(run_id=run_id, command_id=cid, client_id=self.client_id, kind=kind,
+                                    args=json.dumps(args or {})))
+        while time.monotonic() < end:
+            for a in self._ack.take(N=64):
+                if isinstance(a, CommandAck) and a.run_id == run_id and a.command_id == cid:
+                    return Ack(a.accepted, a.reason, a.frame, a.parameter_version)
+            time.sleep(0.005)
+        raise FiberfemError(f"no acknowledgement of '{kind}' from '{run_id}' in {wait_s} s")
