@@ -53,6 +53,10 @@ int run_command(CLI::App& run, RunArgs& a) {
       o.source = a.scene_file;
       return run_batch(io::load_scene(a.scene_file, o.overrides), o, std::cout);
     }
+    if (!builtin_scenes().count(a.builtin)) {
+      std::cerr << "fiberfem: unknown built-in scene '" << a.builtin << "' (available: cantilever, heart)\n";
+      return 2;
+    }
     o.source = "builtin:" + a.builtin;
     return run_batch(load_builtin_scene(a.builtin, o.overrides), o, std::cout);
   } catch (const std::exception& e) {
