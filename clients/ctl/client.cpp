@@ -146,13 +146,14 @@ std::optional<State> Client::next_state(const std::string& run_id, std::chrono::
   const auto deadline = Clock::now() + wait;
   std::optional<State> out;
   do {
-    state_reader_->take([&](const fiberfem_MeshState& s, const dds_sample_info_t&) {
+    state_reader_->take([&](const fiberfem_MeshState& s, const dds_sample_info_t& info) {
       if (dds::str(s.run_id) != run_id || static_cast<long>(s.frame) <= after_frame) return;
       State r;
       r.run_id = run_id;
       r.frame = s.frame;
       r.time_s = s.time_s;
       r.parameter_version = s.parameter_version;
+      r.source_time_s = static_cast<double>(info.source_timestamp) * 1e-9;
       r.positions = copy<dds_sequence_float, float>(s.positions);
       r.activation = copy<dds_sequence_float, float>(s.activation);
       out = std::move(r);  // the newest wins

@@ -33,6 +33,7 @@ struct State {
   unsigned long frame = 0;
   double time_s = 0;
   unsigned parameter_version = 0;
+  double source_time_s = 0;       ///< When the service wrote it (DDS source timestamp, s since the epoch).
   std::vector<float> positions;   ///< 3 per state node, metres.
   std::vector<float> activation;  ///< Per element, 0..1.
 };

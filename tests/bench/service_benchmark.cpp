@@ -1,0 +1,182 @@
+// Figures of the service on DDS (docs/service-performance.md), on loopback:
+//   frames   steps per second the service sustains while publishing every step (--fast,
+//            publish rate unbounded), and the states a client receives per second, for
+//            the default heart and a ~100,000-node box;
+//   latency  command-to-effect: a command sent until the first state that reflects it
+//            (its DDS source timestamp), median and 99th percentile, on the heart in real time;
+//   throughput  states of N nodes published back to back with the service's type and
+//            QoS, received per second by another process; compare with ddsperf's output
+//            for the same payload size in the same run (printed by this program).
+// Run: CYCLONEDDS_URI=file://$PWD/configs/dds/loopback-large.xml build/release/tests/bench/bench_service all
+
+#include "clients/ctl/client.hpp"
+#include "process_support.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <sstream>
+#include <sys/wait.h>
+#include <thread>
+
+using namespace std::chrono_literals;
+using fiberfem::clients::Client;
+using fiberfem::testing::BackgroundProcess;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())))];
+}
+
+double now_epoch_s() { return static_cast<double>(dds_time()) * 1e-9; }
+
+void frames(const std::string& label, std::vector<std::string> serve_args, double seconds) {
+  const std::string run = "bench-" + label + "-" + std::to_string(getpid());
+  std::vector<std::string> args = {FIBERFEM_BIN, "serve", "--run-id", run, "--fast", "--publish-hz", "1000", "--status-hz", "1"};
+  args.insert(args.end(), serve_args.begin(), serve_args.end());
+  BackgroundProcess service(args, "/tmp/bench-service-" + run + ".log");
+  Client client;
+  client.resolve_run(run, 600s);
+  const auto topo = client.topology(run, 60s);
+  long last = -1, received = 0;
+  const auto first = client.next_state(run, 600s);  // past set-up
+  last = static_cast<long>(first->frame);
+  const auto t0 = Clock::now();
+  const long frame0 = last;
+  while (std::chrono::duration<double>(Clock::now() - t0).count() < seconds) {
+    const auto s = client.next_state(run, 60s, last);
+    if (!s) break;
+    last = static_cast<long>(s->frame);
+    ++received;
+  }
+  const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+  const auto st = client.status(run, 5s);
+  std::printf("| %s | %u | %u | %.1f | %.1f | %.2f | %.3f | %.2f |\n", label.c_str(), topo ? topo->num_nodes : 0,
+              topo ? topo->num_elements : 0, static_cast<double>(last - frame0) / wall, static_cast<double>(received) / wall,
+              st ? st->step_ms : 0.0, st ? st->publish_ms : 0.0,
+              topo ? 12.0 * topo->num_nodes / 1e6 + 4.0 * topo->num_elements / 1e6 : 0.0);
+  std::fflush(stdout);
+  client.send(run, "shutdown", "{}");
+  service.wait(30);
+}
+
+void latency(int n) {
+  const std::string run = "bench-latency-" + std::to_string(getpid());
+  BackgroundProcess service({FIBERFEM_BIN, "serve", "--run-id", run, "--status-hz", "1"}, "/tmp/bench-latency.log");
+  Client client;
+  client.resolve_run(run, 600s);
+  client.next_state(run, 60s);
+  std::vector<double> ms;
+  for (int i = 0; i < n; ++i) {
+    const double t_send = now_epoch_s();
+    const auto ack = client.send(run, "set_gravity", i % 2 ? R"({"gravity": [0, 0, 0]})" : R"({"gravity": [0, 0, -0.1]})");
+    long after = static_cast<long>(ack.frame) - 1;
+    for (;;) {
+      const auto s = client.next_state(run, 10s, after);
+      if (!s) break;
+      if (s->parameter_version >= ack.parameter_version) {
+        ms.push_back((s->source_time_s - t_send) * 1e3);
+        break;
+      }
+      after = static_cast<long>(s->frame);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50 + (i * 37) % 60));  // not phase-locked to the step
+  }
+  std::printf("command-to-effect latency, default heart in real time (%zu commands): median %.2f ms, 99th percentile %.2f ms, max %.2f ms\n",
+              ms.size(), percentile(ms, 0.5), percentile(ms, 0.99), percentile(ms, 1.0));
+  client.send(run, "shutdown", "{}");
+  service.wait(30);
+}
+
+// ddsperf (Cyclone's own tool, Debian's cyclonedds-tools) with the same payload, in the
+// same run: the median of its per-second receive rates.
+void ddsperf(int nodes, double seconds) {
+  const std::string dur = std::to_string(static_cast<int>(seconds) + 1);
+  BackgroundProcess sub({"/usr/bin/ddsperf", "-D", std::to_string(static_cast<int>(seconds) + 3), "sub"}, "/tmp/bench-ddsperf-sub.log");
+  std::this_thread::sleep_for(500ms);
+  BackgroundProcess pub({"/usr/bin/ddsperf", "-D", dur, "pub", "size", std::to_string(12 * nodes)}, "/tmp/bench-ddsperf-pub.log");
+  pub.wait(seconds + 30);
+  sub.wait(10);
+  std::vector<double> ks, mbs;
+  std::istringstream in(sub.output());
+  for (std::string line; std::getline(in, line);) {
+    const size_t r = line.find(" rate ");
+    if (r == std::string::npos) continue;
+    double k = 0, mb = 0;
+    if (std::sscanf(line.c_str() + r, " rate %lf kS/s %lf Mb/s", &k, &mb) == 2 && k > 0) ks.push_back(k * 1e3), mbs.push_back(mb / 8);
+  }
+  if (ks.size() > 2) ks.erase(ks.begin()), ks.pop_back(), mbs.erase(mbs.begin()), mbs.pop_back();  // partial first and last seconds
+  std::printf("| ddsperf pub/sub, reliable, size %d B | %d | %.1f | %.1f |\n", 12 * nodes, nodes, percentile(ks, 0.5), percentile(mbs, 0.5));
+}
+
+void throughput(int nodes, double seconds) {
+  std::fflush(stdout);
+  const pid_t child = fork();
+  if (child == 0) {  // subscriber
+    fiberfem::dds::Participant pp;
+    fiberfem::dds::Reader<fiberfem_MeshState> reader(pp);
+    long count = 0;
+    double bytes = 0;
+    Clock::time_point t0{};
+    while (count == 0 || std::chrono::duration<double>(Clock::now() - t0).count() < seconds) {
+      reader.wait(2s);
+      reader.take([&](const fiberfem_MeshState& s, const dds_sample_info_t&) {
+        if (count++ == 0) t0 = Clock::now();
+        bytes += 4.0 * s.positions._length;
+      });
+    }
+    const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+    std::printf("| fiberfem MeshState, reliable keep-last-1 | %d | %.1f | %.1f |\n", nodes, static_cast<double>(count - 1) / wall,
+                bytes / wall / 1e6);
+    std::fflush(stdout);
+    _exit(0);
+  }
+  fiberfem::dds::Participant pp;
+  fiberfem::dds::Writer<fiberfem_MeshState> writer(pp);
+  while (writer.matched() == 0) std::this_thread::sleep_for(10ms);
+  std::vector<float> pos(3 * static_cast<size_t>(nodes), 0.5f), act;
+  std::string run = "throughput";
+  fiberfem_MeshState s{};
+  s.run_id = run.data();
+  s.positions = fiberfem::dds::borrow<dds_sequence_float>(pos);
+  s.activation = fiberfem::dds::borrow<dds_sequence_float>(act);
+  int status = 0;
+  while (waitpid(child, &status, WNOHANG) == 0) {
+    ++s.frame;
+    writer.write(s);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Figures of the fiberfem service on DDS"};
+  std::string what = "all";
+  double seconds = 10;
+  int commands = 200, nodes = 100000;
+  app.add_option("what", what, "frames | latency | throughput | all")->check(CLI::IsMember({"frames", "latency", "throughput", "all"}));
+  app.add_option("--seconds", seconds, "Measuring time per case, s");
+  app.add_option("--commands", commands, "Commands for the latency");
+  app.add_option("--nodes", nodes, "Nodes of a state for the throughput");
+  CLI11_PARSE(app, argc, argv);
+  if (what == "frames" || what == "all") {
+    std::printf("| scene | nodes | elements | steps/s while publishing every step | states received/s | median step ms | median publish ms | state MB |\n|---|---|---|---|---|---|---|---|\n");
+    frames("heart", {"--builtin", "heart"}, seconds);
+    frames("box-100k", {"--builtin", "cantilever", "--set", "mesh.cells=[60, 40, 40]", "--set", "mesh.size=[0.15, 0.1, 0.1]",
+                        "--set", "loads.gravity=[0, 0, -1]"},
+           seconds);
+  }
+  if (what == "latency" || what == "all") latency(commands);
+  if (what == "throughput" || what == "all") {
+    std::printf("| path | nodes | states/s | MB/s |\n|---|---|---|---|\n");
+    throughput(nodes, seconds);
+    ddsperf(nodes, seconds);
+  }
+  return 0;
+}
