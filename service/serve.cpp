@@ -3,7 +3,7 @@
 
 #include "service/serve.hpp"
 
-#include "service/dds/bus.hpp"
+#include "service/run_endpoints.hpp"
 #include "service/run_control.hpp"
 
 #include <algorithm>
@@ -33,49 +33,36 @@ double median(std::vector<double> v) {
   return v[m];
 }
 
-std::string default_run_id(const std::string& scene) {
-  char host[256] = "host";
-  gethostname(host, sizeof host - 1);
-  return scene + "-" + host + "-" + std::to_string(getpid());
-}
-
-// The topology sample's buffers (kept alive while the sample is written).
-struct TopologyBuffers {
-  std::vector<float> rest, fibers;
-  std::vector<int32_t> tets, tris, tri_elems, state_nodes, fixed;
-  std::vector<int16_t> regions;
-  std::vector<char*> names;
-  std::vector<std::string> name_store;
-};
-
-void fill_topology(const RunControl& rc, const std::vector<int>& state_nodes, TopologyBuffers& b) {
+// The topology of the running scene, as published.
+TopologyData topology_of(const RunControl& rc, const std::vector<int>& state_nodes) {
   const core::Simulator& sim = rc.simulator();
   const core::TetMesh& m = sim.model().mesh;
+  TopologyData t;
+  t.scene_name = rc.scene().name;
+  t.scene_hash = rc.scene().hash_sha256;
+  t.num_nodes = m.num_nodes();
+  t.num_elements = m.num_elements();
   const int nn = m.num_nodes(), ne = m.num_elements();
-  b.rest.resize(3 * static_cast<size_t>(nn));
+  t.rest_positions.resize(3 * static_cast<size_t>(nn));
   for (int n = 0; n < nn; ++n)
-    for (int d = 0; d < 3; ++d) b.rest[3 * static_cast<size_t>(n) + d] = static_cast<float>(m.rest_positions()(d, n));
-  b.tets.clear();
-  for (const auto& t : m.tets()) b.tets.insert(b.tets.end(), t.begin(), t.end());
-  b.tris.clear();
-  for (const auto& t : m.boundary_triangles()) b.tris.insert(b.tris.end(), t.begin(), t.end());
-  b.tri_elems.assign(m.boundary_triangle_elements().begin(), m.boundary_triangle_elements().end());
-  b.regions.assign(m.regions().begin(), m.regions().end());
-  b.fibers.resize(3 * static_cast<size_t>(ne));
+    for (int d = 0; d < 3; ++d) t.rest_positions[3 * static_cast<size_t>(n) + d] = static_cast<float>(m.rest_positions()(d, n));
+  for (const auto& e : m.tets()) t.tets.insert(t.tets.end(), e.begin(), e.end());
+  for (const auto& f : m.boundary_triangles()) t.triangles.insert(t.triangles.end(), f.begin(), f.end());
+  t.triangle_elements.assign(m.boundary_triangle_elements().begin(), m.boundary_triangle_elements().end());
+  t.element_regions.assign(m.regions().begin(), m.regions().end());
+  t.region_names = rc.scene().region_names;
+  t.fibers.resize(3 * static_cast<size_t>(ne));
   const auto& f = sim.model().fibers;
   for (int e = 0; e < ne; ++e)
     for (int d = 0; d < 3; ++d)
-      b.fibers[3 * static_cast<size_t>(e) + d] = f.empty() ? (d == 0 ? 1.f : 0.f) : static_cast<float>(f[static_cast<size_t>(e)](d));
-  b.state_nodes.assign(state_nodes.begin(), state_nodes.end());
-  b.fixed.clear();
+      t.fibers[3 * static_cast<size_t>(e) + d] = f.empty() ? (d == 0 ? 1.f : 0.f) : static_cast<float>(f[static_cast<size_t>(e)](d));
+  t.state_nodes.assign(state_nodes.begin(), state_nodes.end());
   const auto& fixed = sim.model().fixed_dofs;
   if (!fixed.empty())
     for (int n = 0; n < nn; ++n)
       if (fixed[3 * static_cast<size_t>(n)] || fixed[3 * static_cast<size_t>(n) + 1] || fixed[3 * static_cast<size_t>(n) + 2])
-        b.fixed.push_back(n);
-  b.name_store = rc.scene().region_names;
-  b.names.clear();
-  for (auto& s : b.name_store) b.names.push_back(s.data());
+        t.fixed_nodes.push_back(n);
+  return t;
 }
 
 }  // namespace
@@ -92,49 +79,17 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
   options.validate();
   RunControl rc(scene);
   if (options.start_paused) rc.apply("pause", "{}");
-  std::string run_id = options.run_id.empty() ? default_run_id(scene.name) : options.run_id;
-  char host[256] = "host";
-  gethostname(host, sizeof host - 1);
-
-  std::unique_ptr<dds::Participant> pp;
+  const std::string run_id = options.run_id.empty() ? default_run_id(scene.name) : options.run_id;
+  std::unique_ptr<RunEndpoints> bus;
   try {
-    pp = std::make_unique<dds::Participant>();
+    bus = std::make_unique<RunEndpoints>(run_id);
   } catch (const dds::DdsError& e) {
     out << "fiberfem serve: " << e.what() << "\n";
     return 1;
   }
-  dds::Writer<fiberfem_MeshTopology> topology_writer(*pp);
-  dds::Writer<fiberfem_MeshState> state_writer(*pp);
-  dds::Writer<fiberfem_ServiceStatus> status_writer(*pp);
-  dds::Writer<fiberfem_CommandAck> ack_writer(*pp);
-  dds::Reader<fiberfem_Command> command_reader(*pp);
-
   const core::TetMesh& mesh = rc.simulator().model().mesh;
   const std::vector<int> state_nodes = options.surface_only ? mesh.boundary_nodes() : std::vector<int>{};
-  std::string hash = scene.hash_sha256, scene_name = scene.name;
-
-  TopologyBuffers tb;
-  auto publish_topology = [&] {
-    fill_topology(rc, state_nodes, tb);
-    fiberfem_MeshTopology t{};
-    t.run_id = run_id.data();
-    t.scene_name = scene_name.data();
-    t.scene_hash = hash.data();
-    t.replay = false;
-    t.num_nodes = static_cast<uint32_t>(mesh.num_nodes());
-    t.num_elements = static_cast<uint32_t>(mesh.num_elements());
-    t.rest_positions = dds::borrow<dds_sequence_float>(tb.rest);
-    t.tets = dds::borrow<dds_sequence_int32>(tb.tets);
-    t.triangles = dds::borrow<dds_sequence_int32>(tb.tris);
-    t.triangle_elements = dds::borrow<dds_sequence_int32>(tb.tri_elems);
-    t.element_regions = dds::borrow<dds_sequence_int16>(tb.regions);
-    t.region_names = dds::borrow<dds_sequence_string>(tb.names);
-    t.fibers = dds::borrow<dds_sequence_float>(tb.fibers);
-    t.state_nodes = dds::borrow<dds_sequence_int32>(tb.state_nodes);
-    t.fixed_nodes = dds::borrow<dds_sequence_int32>(tb.fixed);
-    topology_writer.write(t);
-  };
-  publish_topology();
+  bus->publish_topology(topology_of(rc, state_nodes));
   unsigned topology_version = rc.topology_version();
 
   std::vector<float> pos_buf, act_buf;
@@ -154,17 +109,10 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     const auto& peaks = sim.model().contraction.region_peak_pa;
     act_buf.resize(act.size());
     for (size_t e = 0; e < act.size(); ++e) {
-      const double peak = peaks.empty() ? 0.0 : peaks[static_cast<size_t>(mesh.regions()[e])];
+      const double peak = peaks.empty() ? 0.0 : peaks[static_cast<size_t>(sim.model().mesh.regions()[e])];
       act_buf[e] = peak > 0 ? static_cast<float>(act[e] / peak) : 0.f;
     }
-    fiberfem_MeshState s{};
-    s.run_id = run_id.data();
-    s.frame = static_cast<uint64_t>(sim.step_count());
-    s.time_s = sim.time_s();
-    s.parameter_version = rc.parameter_version();
-    s.positions = dds::borrow<dds_sequence_float>(pos_buf);
-    s.activation = dds::borrow<dds_sequence_float>(act_buf);
-    state_writer.write(s);
+    bus->publish_state(static_cast<unsigned long>(sim.step_count()), sim.time_s(), rc.parameter_version(), pos_buf, act_buf);
   };
 
   g_serve_signal = 0;
@@ -200,17 +148,11 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     const auto now = Clock::now();
     const double wall = std::max(1e-9, seconds_between(t_period, now));
     const core::Simulator& sim = rc.simulator();
-    fiberfem_ServiceStatus st{};
-    std::string scene_s = scene_name, host_s = host, mode = options.realtime ? "realtime" : "fast";
-    std::string state_s = state, msg = last_message, rec;
-    st.run_id = run_id.data();
-    st.scene_name = scene_s.data();
-    st.host = host_s.data();
-    st.pid = getpid();
-    st.state = state_s.data();
-    st.mode = mode.data();
-    st.replay = false;
-    st.frame = static_cast<uint64_t>(sim.step_count());
+    StatusData st;
+    st.scene_name = scene.name;
+    st.state = state;
+    st.mode = options.realtime ? "realtime" : "fast";
+    st.frame = static_cast<unsigned long>(sim.step_count());
     st.time_s = sim.time_s();
     st.frames_per_second = static_cast<double>(steps_in_period) / wall;
     st.real_time_factor = (sim.time_s() - sim_t_period) / wall;
@@ -219,7 +161,6 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     st.assembly_ms = median(asm_ms);
     st.solve_ms = median(solve_ms);
     st.publish_ms = median(pub_ms);
-    st.record_ms = 0;
     st.solver_iterations = last.solver_iterations;
     st.solver_residual = last.solver_residual;
     st.inverted_elements = last.inverted_elements;
@@ -227,14 +168,12 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     st.elastic_energy_j = last.elastic_energy_j;
     st.recovered_steps = recovered;
     st.failed_steps = failed;
-    st.last_message = msg.data();
+    st.last_message = last_message;
     st.parameter_version = rc.parameter_version();
     st.heart_rate_bpm = rc.heart_rate_bpm();
     st.peak_tension_pa = rc.peak_tension_pa();
     st.dt_s = sim.settings().dt_s;
-    st.recording = rec.data();
-    st.recorded_frames = 0;
-    status_writer.write(st);
+    bus->publish_status(st);
     if (options.status_line) {
       std::fprintf(stderr, "\r%-8s t=%8.3f s  frame %7ld  %6.1f steps/s  x%.2f real time  step %.2f ms  iters %3d  v%u   ",
                    state.c_str(), sim.time_s(), sim.step_count(), st.frames_per_second, st.real_time_factor, st.step_ms,
@@ -251,24 +190,16 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
   std::string stop_reason = "shut down by command";
   for (;;) {
     // 1. Commands, at the step boundary.
-    command_reader.take([&](const fiberfem_Command& c, const dds_sample_info_t&) {
-      if (dds::str(c.run_id) != run_id) return;  // another run's
-      const CommandResult r = rc.apply(dds::str(c.kind), dds::str(c.args));
-      fiberfem_CommandAck ack{};
-      std::string reason = r.reason;
-      ack.run_id = run_id.data();
-      ack.command_id = c.command_id;
-      ack.client_id = c.client_id;
-      ack.accepted = r.accepted;
-      ack.reason = reason.data();
-      ack.frame = static_cast<uint64_t>(rc.simulator().step_count());
-      ack.parameter_version = rc.parameter_version();
-      ack_writer.write(ack);
-      if (!r.accepted) last_message = "rejected " + dds::str(c.kind) + ": " + r.reason;
-      state_dirty = true;
-    });
+    const int handled = bus->handle_commands(
+        [&](const std::string& kind, const std::string& args) {
+          const CommandResult r = rc.apply(kind, args);
+          if (!r.accepted) last_message = "rejected " + kind + ": " + r.reason;
+          return CommandReply{r.accepted, r.reason};
+        },
+        [&] { return std::make_pair(static_cast<unsigned long>(rc.simulator().step_count()), rc.parameter_version()); });
+    if (handled) state_dirty = true;
     if (rc.topology_version() != topology_version) {
-      publish_topology();
+      bus->publish_topology(topology_of(rc, state_nodes));
       topology_version = rc.topology_version();
     }
     if (rc.shutdown_requested()) break;
@@ -313,13 +244,13 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     // 4. Pace: real time waits for the wall clock (listening for commands meanwhile);
     // paused waits for a command.
     if (!stepped) {
-      command_reader.wait(std::chrono::milliseconds(20));
+      bus->wait_for_command(std::chrono::milliseconds(20));
       pace_wall = Clock::now();
       pace_sim = rc.simulator().time_s();
     } else if (options.realtime) {
       const double ahead = (rc.simulator().time_s() - pace_sim) / options.real_time_factor - seconds_between(pace_wall, Clock::now());
       if (ahead > 0) {
-        command_reader.wait(std::chrono::nanoseconds(static_cast<long long>(ahead * 1e9)));
+        bus->wait_for_command(std::chrono::nanoseconds(static_cast<long long>(ahead * 1e9)));
       } else if (ahead < -0.25) {  // behind by more than 0.25 s: re-anchor (report, don't catch up)
         pace_wall = Clock::now();
         pace_sim = rc.simulator().time_s();

@@ -135,6 +135,14 @@ TEST(RunControl, MaterialCommandMergesIntoTheRegionsMaterial) {
   EXPECT_LT((rc.simulator().model().region_materials[0].stiffness() - iso.stiffness()).norm(),
             1e-9 * iso.stiffness().norm());
   EXPECT_EQ(rc.parameter_version(), 2u);
+  // Reset with parameters: the scene's material again, at rest, time zero.
+  run(rc, 5);
+  ASSERT_TRUE(rc.apply("reset", R"({"parameters": true})").accepted);
+  const core::Material scene_material = core::Material::from_engineering({60e3, 20e3, 0.45, 0.25, 8e3}, 1000.0);
+  EXPECT_LT((rc.simulator().model().region_materials[0].stiffness() - scene_material.stiffness()).norm(),
+            1e-9 * scene_material.stiffness().norm());
+  EXPECT_EQ(rc.simulator().time_s(), 0.0);
+  EXPECT_EQ((rc.simulator().positions() - rc.scene().model.mesh.rest_positions()).cwiseAbs().maxCoeff(), 0.0);
 }
 
 TEST(RunControl, PauseStepResumeAndTimeStep) {

@@ -1,0 +1,115 @@
+#include "service/run_endpoints.hpp"
+
+#include <unistd.h>
+
+namespace fiberfem::service {
+namespace {
+
+std::string hostname() {
+  char host[256] = "host";
+  gethostname(host, sizeof host - 1);
+  return host;
+}
+
+}  // namespace
+
+std::string default_run_id(const std::string& scene) { return scene + "-" + hostname() + "-" + std::to_string(getpid()); }
+
+RunEndpoints::RunEndpoints(std::string run_id)
+    : run_id_(std::move(run_id)), host_(hostname()), pp_(), topology_(pp_), state_(pp_), status_(pp_), ack_(pp_), commands_(pp_) {}
+
+void RunEndpoints::publish_topology(const TopologyData& t) {
+  TopologyData b = t;  // sequences borrow these buffers while writing
+  std::vector<char*> names;
+  for (auto& n : b.region_names) names.push_back(n.data());
+  fiberfem_MeshTopology m{};
+  m.run_id = run_id_.data();
+  m.scene_name = b.scene_name.data();
+  m.scene_hash = b.scene_hash.data();
+  m.replay = b.replay;
+  m.num_nodes = static_cast<uint32_t>(b.num_nodes);
+  m.num_elements = static_cast<uint32_t>(b.num_elements);
+  m.rest_positions = dds::borrow<dds_sequence_float>(b.rest_positions);
+  m.tets = dds::borrow<dds_sequence_int32>(b.tets);
+  m.triangles = dds::borrow<dds_sequence_int32>(b.triangles);
+  m.triangle_elements = dds::borrow<dds_sequence_int32>(b.triangle_elements);
+  m.element_regions = dds::borrow<dds_sequence_int16>(b.element_regions);
+  m.region_names = dds::borrow<dds_sequence_string>(names);
+  m.fibers = dds::borrow<dds_sequence_float>(b.fibers);
+  m.state_nodes = dds::borrow<dds_sequence_int32>(b.state_nodes);
+  m.fixed_nodes = dds::borrow<dds_sequence_int32>(b.fixed_nodes);
+  topology_.write(m);
+}
+
+void RunEndpoints::publish_state(unsigned long frame, double time_s, unsigned parameter_version, std::vector<float>& positions,
+                                 std::vector<float>& activation) {
+  fiberfem_MeshState s{};
+  s.run_id = run_id_.data();
+  s.frame = frame;
+  s.time_s = time_s;
+  s.parameter_version = parameter_version;
+  s.positions = dds::borrow<dds_sequence_float>(positions);
+  s.activation = dds::borrow<dds_sequence_float>(activation);
+  state_.write(s);
+}
+
+void RunEndpoints::publish_status(const StatusData& d) {
+  StatusData s = d;
+  fiberfem_ServiceStatus st{};
+  st.run_id = run_id_.data();
+  st.scene_name = s.scene_name.data();
+  st.host = host_.data();
+  st.pid = getpid();
+  st.state = s.state.data();
+  st.mode = s.mode.data();
+  st.replay = s.replay;
+  st.frame = s.frame;
+  st.time_s = s.time_s;
+  st.frames_per_second = s.frames_per_second;
+  st.real_time_factor = s.real_time_factor;
+  st.step_ms = s.step_ms;
+  st.rotations_ms = s.rotations_ms;
+  st.assembly_ms = s.assembly_ms;
+  st.solve_ms = s.solve_ms;
+  st.publish_ms = s.publish_ms;
+  st.record_ms = s.record_ms;
+  st.solver_iterations = s.solver_iterations;
+  st.solver_residual = s.solver_residual;
+  st.inverted_elements = s.inverted_elements;
+  st.kinetic_energy_j = s.kinetic_energy_j;
+  st.elastic_energy_j = s.elastic_energy_j;
+  st.recovered_steps = s.recovered_steps;
+  st.failed_steps = s.failed_steps;
+  st.last_message = s.last_message.data();
+  st.parameter_version = s.parameter_version;
+  st.heart_rate_bpm = s.heart_rate_bpm;
+  st.peak_tension_pa = s.peak_tension_pa;
+  st.dt_s = s.dt_s;
+  st.recording = s.recording.data();
+  st.recorded_frames = s.recorded_frames;
+  status_.write(st);
+}
+
+int RunEndpoints::handle_commands(const std::function<CommandReply(const std::string&, const std::string&)>& apply,
+                                  const std::function<std::pair<unsigned long, unsigned>()>& stamp) {
+  int n = 0;
+  commands_.take([&](const fiberfem_Command& c, const dds_sample_info_t&) {
+    if (dds::str(c.run_id) != run_id_) return;  // another run's
+    const CommandReply r = apply(dds::str(c.kind), dds::str(c.args));
+    const auto [frame, version] = stamp();
+    std::string reason = r.reason;
+    fiberfem_CommandAck ack{};
+    ack.run_id = run_id_.data();
+    ack.command_id = c.command_id;
+    ack.client_id = c.client_id;
+    ack.accepted = r.accepted;
+    ack.reason = reason.data();
+    ack.frame = frame;
+    ack.parameter_version = version;
+    ack_.write(ack);
+    ++n;
+  });
+  return n;
+}
+
+}  // namespace fiberfem::service

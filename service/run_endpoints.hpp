@@ -1,0 +1,79 @@
+#pragma once
+/// @file The DDS side of one run, shared by the live service and the archive replay:
+/// writers of the topology, states, status and acknowledgements and the reader of
+/// commands, all keyed by the run id (docs/dds.md).
+
+#include "service/dds/bus.hpp"
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace fiberfem::service {
+
+/// The topology of a run as published (float positions, int indices).
+struct TopologyData {
+  std::string scene_name, scene_hash;
+  bool replay = false;
+  int num_nodes = 0, num_elements = 0;
+  std::vector<float> rest_positions;  ///< 3 per node, m.
+  std::vector<int32_t> tets, triangles, triangle_elements, state_nodes, fixed_nodes;
+  std::vector<int16_t> element_regions;
+  std::vector<std::string> region_names;
+  std::vector<float> fibers;  ///< 3 per element.
+};
+
+/// The status fields a run reports (fiberfem::ServiceStatus less the run id and host).
+struct StatusData {
+  std::string scene_name, state, mode, last_message, recording;
+  bool replay = false;
+  unsigned long frame = 0;
+  double time_s = 0, frames_per_second = 0, real_time_factor = 0;
+  double step_ms = 0, rotations_ms = 0, assembly_ms = 0, solve_ms = 0, publish_ms = 0, record_ms = 0;
+  int solver_iterations = 0, inverted_elements = 0;
+  double solver_residual = 0, kinetic_energy_j = 0, elastic_energy_j = 0;
+  unsigned recovered_steps = 0, failed_steps = 0, parameter_version = 0;
+  double heart_rate_bpm = 0, peak_tension_pa = 0, dt_s = 0;
+  unsigned long recorded_frames = 0;
+};
+
+/// The answer to one command.
+struct CommandReply {
+  bool accepted = false;
+  std::string reason;
+};
+
+class RunEndpoints {
+ public:
+  /// Joins the domain (CYCLONEDDS_URI). @throws dds::DdsError when DDS cannot start.
+  explicit RunEndpoints(std::string run_id);
+
+  const std::string& run_id() const { return run_id_; }
+  void publish_topology(const TopologyData& t);
+  /// `positions`: 3 floats per state node; `activation`: one per element (may be empty).
+  void publish_state(unsigned long frame, double time_s, unsigned parameter_version, std::vector<float>& positions,
+                     std::vector<float>& activation);
+  void publish_status(const StatusData& s);
+  /// Takes the commands addressed to this run, calls `apply(kind, args)` for each and
+  /// acknowledges it with the frame and parameter version `stamp()` gives after it.
+  /// @return the number of commands handled.
+  int handle_commands(const std::function<CommandReply(const std::string& kind, const std::string& args)>& apply,
+                      const std::function<std::pair<unsigned long, unsigned>()>& stamp);
+  /// Blocks until a command may be waiting or `timeout` passes.
+  void wait_for_command(std::chrono::nanoseconds timeout) { commands_.wait(timeout); }
+
+ private:
+  std::string run_id_, host_;
+  dds::Participant pp_;
+  dds::Writer<fiberfem_MeshTopology> topology_;
+  dds::Writer<fiberfem_MeshState> state_;
+  dds::Writer<fiberfem_ServiceStatus> status_;
+  dds::Writer<fiberfem_CommandAck> ack_;
+  dds::Reader<fiberfem_Command> commands_;
+};
+
+/// "<scene>-<host>-<pid>".
+std::string default_run_id(const std::string& scene);
+
+}  // namespace fiberfem::service
