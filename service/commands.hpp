@@ -12,4 +12,8 @@ namespace fiberfem::service {
 /// `fiberfem run`: a scene in batch, without the bus (cmd_run.cpp).
 void add_run_command(CLI::App& app, int& exit_code);
 
+/// `fiberfem archive info|recover|export-meshio`: run archives (cmd_archive.cpp; built
+/// with FIBERFEM_WITH_HDF5).
+void add_archive_command(CLI::App& app, int& exit_code);
+
 }  // namespace fiberfem::service

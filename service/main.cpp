@@ -10,6 +10,9 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int exit_code = 0;
   fiberfem::service::add_run_command(app, exit_code);
+#ifdef FIBERFEM_HAVE_ARCHIVE
+  fiberfem::service::add_archive_command(app, exit_code);
+#endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }
