@@ -324,6 +324,7 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       initial.time_s = sim.time_s();
       measure_cavities();
       recorder->record_frame(sim, initial, {cavity_now});
+      if (o.log_frames) out << "frame " << recorder->frames() << " step " << sim.step_count() << "\n" << std::flush;
       report["archive"] = {{"path", ao.path}};
     }
 #else
@@ -354,7 +355,10 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       if (recorder) {
         measure_cavities();
         for (size_t k = 0; k < volumes.size(); ++k) volumes[k].add(cavity_now[k].second);
+        const long before = recorder->frames();
         recorder->record_frame(sim, r, {cavity_now});
+        if (o.log_frames && recorder->frames() != before)
+          out << "frame " << recorder->frames() << " step " << sim.step_count() << "\n" << std::flush;
       } else
 #endif
       {

@@ -28,6 +28,9 @@ struct BatchOptions {
   /// resume_time_s (infinity: its last checkpoint). Empty: start from rest.
   std::string resume_path;
   double resume_time_s = HUGE_VAL;     ///< Simulated time, s, of the checkpoint to resume from.
+  /// --log-frames: print "frame F step S" after each recorded frame (scripts and tests
+  /// following a run).
+  bool log_frames = false;
 };
 
 /// Whether this build records archives (FIBERFEM_WITH_HDF5 and HDF5 found).

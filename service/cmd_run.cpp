@@ -148,6 +148,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
       ->check(CLI::Range(0.0, 1e9));
   run->add_option("--compression", a->compression, "Deflate level 0-9 of the per-frame arrays (archive.compression, default 0)")
       ->check(CLI::Range(0, 9));
+  run->add_flag("--log-frames", o.log_frames, "With --archive: print 'frame F step S' after each recorded frame");
   run->add_option("--resume", a->resume,
                   "Continue a recorded run from its checkpoint at or before a time: RUN.h5[@t] (the scene from the archive unless one is given)");
   run->callback([run, a, &exit_code] { exit_code = run_command(*run, *a); });

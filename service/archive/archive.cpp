@@ -367,7 +367,8 @@ void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepRep
     while (w.next_checkpoint_s <= sim.time_s() + 1e-9) w.next_checkpoint_s += w.o.checkpoint_every_s;
   }
   const double since_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - w.last_flush).count();
-  if (w.since_flush >= w.o.flush_frames || (w.o.flush_seconds > 0 && since_s >= w.o.flush_seconds)) flush();
+  // The first frame is flushed at once (a reader sees the run start); then by cadence.
+  if (w.frames == 1 || w.since_flush >= w.o.flush_frames || (w.o.flush_seconds > 0 && since_s >= w.o.flush_seconds)) flush();
 }
 
 void ArchiveWriter::record_command(const CommandRecord& c) {
