@@ -781,6 +781,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     Map a(ctx, top["archive"], "archive",
           {"path", "flush_frames", "flush_seconds", "every", "velocities", "displacement", "checkpoint_every", "compression"});
     archive.enabled = true;
+    if (!a.has("path")) ctx.fail(top["archive"], "archive.path", "required: the .h5 file to record into");
     archive.path = text(ctx, a["path"], "archive.path");
     if (archive.path.empty()) ctx.fail(a["path"], "archive.path", "must not be empty");
     if (a.has("flush_frames")) archive.flush_frames = integer(ctx, a["flush_frames"], "archive.flush_frames", 1, 100000);
