@@ -248,6 +248,8 @@ class CholeskyFactor {
     return ok_;
   }
   bool ok() const { return ok_; }
+  /// The matrix of the last factorize() (column-major copy of its arrays).
+  const Eigen::SparseMatrix<double, Eigen::ColMajor, int>& matrix() const { return Acol_; }
   template <class Rhs>
   Eigen::VectorXd solve(const Rhs& b) const { return llt_.solve(b); }
   /// Keep a single-precision copy of the factor for `precondition` (CHOLMOD only).
@@ -522,6 +524,67 @@ class PcgSolver final : public LinearSolver {
   }
   void set_matrix_key(double key) override { key_ = key; }
   void forget_solutions() override { history_count_ = history_next_ = 0; }
+  LinearSolverState save_state() const override {
+    LinearSolverState st;
+    st.solver_name = name();
+    st.history_rows = history_.rows();
+    st.history_cols = static_cast<int>(history_.cols());
+    st.history = Eigen::Map<const Eigen::VectorXd>(history_.data(), history_.size());
+    st.history_count = history_count_;
+    st.history_next = history_next_;
+    st.key = key_;
+    st.clock = clock_;
+    for (const auto& sl : slots_) {
+      LinearSolverState::Factor f;
+      f.factored = sl->factor.ok();
+      if (f.factored) {
+        const auto& A = sl->factor.matrix();
+        f.matrix_values = Eigen::Map<const Eigen::VectorXd>(A.valuePtr(), A.nonZeros());
+      }
+      f.at_factor = sl->at_factor;
+      f.rows = sl->rows;
+      f.stale = sl->stale;
+      f.key = sl->key;
+      f.last_used = sl->last_used;
+      st.factors.push_back(std::move(f));
+    }
+    return st;
+  }
+  void load_state(const LinearSolverState& st, const SparseMatrix& pattern) override {
+    if (st.solver_name != name())
+      throw std::invalid_argument("linear solver state: saved by '" + st.solver_name + "', restoring into '" + name() + "'");
+    if (st.history.size() != st.history_rows * st.history_cols || st.history_count < 0 ||
+        st.history_count > st.history_cols || st.history_next < 0 || (st.history_cols > 0 && st.history_next >= st.history_cols))
+      throw std::invalid_argument("linear solver state: inconsistent recycled-solution basis");
+    if (st.factors.size() > kSlots)
+      throw std::invalid_argument("linear solver state: " + std::to_string(st.factors.size()) + " factors, at most " +
+                                  std::to_string(kSlots));
+    for (const auto& f : st.factors)
+      if (f.factored && f.matrix_values.size() != pattern.nonZeros())
+        throw std::invalid_argument("linear solver state: a factor's matrix has " + std::to_string(f.matrix_values.size()) +
+                                    " values, the system " + std::to_string(pattern.nonZeros()));
+    history_ = Eigen::Map<const RowMajorMatrix>(st.history.data(), st.history_rows, st.history_cols);
+    history_count_ = st.history_count;
+    history_next_ = st.history_next;
+    key_ = st.key;
+    clock_ = st.clock;
+    slots_.clear();
+    for (const auto& f : st.factors) {
+      auto sl = std::make_unique<FactorSlot>();
+      if (f.factored) {
+        SparseMatrix A = pattern;
+        Eigen::Map<Eigen::VectorXd>(A.valuePtr(), A.nonZeros()) = f.matrix_values;
+        sl->factor.set_single_precision(s_.single_precision_preconditioner);
+        sl->factor.factorize(A);
+      }
+      sl->at_factor = f.at_factor;
+      sl->rows = f.rows;
+      sl->stale = f.stale;
+      sl->key = f.key;
+      sl->last_used = f.last_used;
+      slots_.push_back(std::move(sl));
+    }
+  }
 
  private:
   template <class Cg>
@@ -586,6 +649,11 @@ class DirectSolver final : public LinearSolver {
 };
 
 }  // namespace
+
+void LinearSolver::load_state(const LinearSolverState& state, const SparseMatrix& /*pattern*/) {
+  if (state.solver_name != name())
+    throw std::invalid_argument("linear solver state: saved by '" + state.solver_name + "', restoring into '" + name() + "'");
+}
 
 bool direct_solver_uses_cholmod() {
 #ifdef FIBERFEM_HAVE_CHOLMOD

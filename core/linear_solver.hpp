@@ -69,6 +69,33 @@ struct SolveStats {
   bool ok = false;             ///< Finite result and (for PCG) converged to tolerance.
 };
 
+/// Everything a solver carries from one solve to the next (recycled solutions, lagged
+/// factors and their age), so that a restored solver continues bit-for-bit
+/// (Simulator::checkpoint). A factor is kept as the values of the matrix it factorised
+/// (same pattern as the system matrix): factorising the same matrix again gives the same
+/// factor, so a restore refactorises instead of storing the factor.
+struct LinearSolverState {
+  std::string solver_name;           ///< LinearSolver::name() of the solver that saved it.
+  Eigen::Index history_rows = 0;     ///< Rows of the recycled-solution basis (free DOFs), or 0.
+  int history_cols = 0;              ///< Columns (SolverSettings::recycled_solutions), or 0.
+  Eigen::VectorXd history;           ///< The basis, row-major, history_rows x history_cols.
+  int history_count = 0;             ///< Valid columns, in [0, history_cols].
+  int history_next = 0;              ///< Column the next solution overwrites.
+  double key = 0;                    ///< Matrix family of the next solve (step size h, s).
+  long clock = 0;                    ///< Solve counter (least-recently-used factor choice).
+  /// One lagged factor (warp preconditioner).
+  struct Factor {
+    bool factored = false;           ///< The factorisation succeeded (else refactorised at next use).
+    Eigen::VectorXd matrix_values;   ///< Values of the factorised matrix (system pattern).
+    std::vector<Mat3> at_factor;     ///< Node-block rotations at factorisation time.
+    Eigen::Index rows = -1;          ///< Rows of the factorised matrix.
+    bool stale = true;               ///< Refactorise before the next use.
+    double key = 0;                  ///< Matrix family (step size h, s).
+    long last_used = 0;              ///< Clock of the last use.
+  };
+  std::vector<Factor> factors;       ///< In slot order.
+};
+
 /// Solves A x = b for the engine's SPD matrices. The pattern is analysed once.
 class LinearSolver {
  public:
@@ -92,6 +119,17 @@ class LinearSolver {
   /// Names the family of the next matrices (the simulator passes the step size h):
   /// solvers that reuse factorisations keep one per family.
   virtual void set_matrix_key(double /*key*/) {}
+  /// What the next solves depend on besides their inputs (see LinearSolverState).
+  virtual LinearSolverState save_state() const {
+    LinearSolverState s;
+    s.solver_name = name();
+    return s;
+  }
+  /// Restores save_state()'s result; `pattern` is a matrix with the system's sparsity
+  /// pattern (its values are replaced). Refactorises the saved factors from their
+  /// matrices. @throws std::invalid_argument if the state belongs to another solver kind
+  /// or another system size.
+  virtual void load_state(const LinearSolverState& state, const SparseMatrix& pattern);
 };
 
 /// Makes the solver for `settings` (validated).

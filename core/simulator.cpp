@@ -144,6 +144,69 @@ void Simulator::reset() {
   contraction_origin_s_ = 0;
 }
 
+SimulatorCheckpoint Simulator::checkpoint() const {
+  SimulatorCheckpoint c;
+  c.time_s = time_s_;
+  c.step_count = steps_;
+  c.dt_s = settings_.dt_s;
+  c.num_nodes = model_.mesh.num_nodes();
+  c.num_elements = model_.mesh.num_elements();
+  c.x = x_;
+  c.v = v_;
+  c.vfree = vfree_;
+  c.vfree_prev = vfree_prev_;
+  c.last_h_s = last_h_;
+  c.q = q_;
+  c.R = R_;
+  c.rotations_current = rotations_current_;
+  c.inverted_current = inverted_current_;
+  c.block_q = block_q_;
+  c.block_R = block_R_;
+  c.active_tension_pa = active_;
+  c.f_ext = f_ext_;
+  c.energy_floor_j = energy_floor_j_;
+  c.solver = solver_->save_state();
+  return c;
+}
+
+void Simulator::restore(const SimulatorCheckpoint& c) {
+  const int nn = model_.mesh.num_nodes(), ne = model_.mesh.num_elements();
+  const auto fail = [](const std::string& what) { throw std::invalid_argument("restore: " + what); };
+  if (c.num_nodes != nn || c.num_elements != ne)
+    fail("checkpoint of a mesh with " + std::to_string(c.num_nodes) + " nodes and " + std::to_string(c.num_elements) +
+         " elements, this model has " + std::to_string(nn) + " and " + std::to_string(ne));
+  if (c.dt_s != settings_.dt_s)
+    fail("checkpoint time step " + std::to_string(c.dt_s) + " s, this simulator's " + std::to_string(settings_.dt_s) + " s");
+  const Eigen::Index n3 = 3 * static_cast<Eigen::Index>(nn);
+  if (c.x.size() != n3 || c.v.size() != n3 || c.f_ext.size() != n3) fail("state vectors of the wrong size");
+  if (!c.x.allFinite() || !c.v.allFinite()) fail("non-finite positions or velocities");
+  if (c.vfree.size() != sys_.num_free() || c.vfree_prev.size() != sys_.num_free()) fail("free-DOF vectors of the wrong size");
+  if (c.q.size() != q_.size() || c.R.size() != R_.size()) fail("per-element rotations of the wrong size");
+  if (c.block_q.size() != block_q_.size() || c.block_R.size() != block_R_.size()) fail("node-block rotations of the wrong size");
+  if (!(c.active_tension_pa.empty() || static_cast<int>(c.active_tension_pa.size()) == ne))
+    fail("active tension of the wrong size");
+  if (model_.contraction.enabled() && c.active_tension_pa.empty()) fail("no active tension for a contracting model");
+  if (!(std::isfinite(c.time_s) && c.step_count >= 0)) fail("bad time or step count");
+  solver_->load_state(c.solver, sys_.matrix());  // throws before anything else changes
+  time_s_ = c.time_s;
+  steps_ = c.step_count;
+  x_ = c.x;
+  v_ = c.v;
+  vfree_ = c.vfree;
+  vfree_prev_ = c.vfree_prev;
+  last_h_ = c.last_h_s;
+  q_ = c.q;
+  R_ = c.R;
+  rotations_current_ = c.rotations_current;
+  inverted_current_ = c.inverted_current;
+  block_q_ = c.block_q;
+  block_R_ = c.block_R;
+  if (!c.active_tension_pa.empty() && caches_.g.empty()) caches_.build_active(model_);
+  active_ = c.active_tension_pa;
+  f_ext_ = c.f_ext;
+  energy_floor_j_ = c.energy_floor_j;
+}
+
 void Simulator::apply_fixed() {
   if (model_.fixed_dofs.empty()) return;
   const auto& rest = model_.mesh.rest_positions();

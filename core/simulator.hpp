@@ -83,6 +83,32 @@ struct Energies {
   double gravity_j = 0;  ///< -sum m g.x (relative to the origin).
 };
 
+/// Everything later steps depend on besides the model and the settings: restoring it
+/// into a Simulator built from the same model and settings continues the run
+/// bit-for-bit (Simulator::checkpoint, Simulator::restore). Plain data, no I/O.
+struct SimulatorCheckpoint {
+  double time_s = 0;                 ///< Simulation time, s.
+  long step_count = 0;               ///< Accepted steps so far.
+  double dt_s = 0;                   ///< The time step when saved, s (restore checks it).
+  int num_nodes = 0;                 ///< Nodes of the model (restore checks it).
+  int num_elements = 0;              ///< Elements of the model (restore checks it).
+  Eigen::VectorXd x;                 ///< Positions, 3N, m.
+  Eigen::VectorXd v;                 ///< Velocities, 3N, m/s.
+  Eigen::VectorXd vfree;             ///< Last solution over the free DOFs, m/s.
+  Eigen::VectorXd vfree_prev;        ///< The one before (warm-start extrapolation), m/s.
+  double last_h_s = -1;              ///< Step size of the last solve, s (-1: none yet).
+  std::vector<Eigen::Quaterniond> q; ///< Warm-start polar rotation per element.
+  std::vector<Mat3> R;               ///< Rotation per element.
+  bool rotations_current = false;    ///< R belongs to x (computed by the last step's checks).
+  int inverted_current = 0;          ///< Inverted elements counted with R.
+  std::vector<Eigen::Quaterniond> block_q;  ///< Warm-start rotation per free node block.
+  std::vector<Mat3> block_R;         ///< Rotation per free node block.
+  std::vector<double> active_tension_pa;   ///< Per element, Pa (empty: contraction off).
+  Eigen::VectorXd f_ext;             ///< External force of the last step, 3N, N.
+  double energy_floor_j = 0;         ///< Round-off scale of the energy check, J.
+  LinearSolverState solver;          ///< Recycled solutions and lagged factors.
+};
+
 class Simulator {
   // One cache line per thread for reductions inside the coloured loops.
   struct alignas(64) ThreadAcc {
@@ -107,6 +133,17 @@ class Simulator {
   void reset();
   double time_s() const { return time_s_; }
   long step_count() const { return steps_; }
+
+  /// The complete state between steps (see SimulatorCheckpoint). Cost: copies of the
+  /// state vectors and of the lagged factors' matrices.
+  SimulatorCheckpoint checkpoint() const;
+  /// Restores a checkpoint() taken from a Simulator with the same model and settings
+  /// (after the same parameter changes): the following steps equal those after the
+  /// checkpoint bit-for-bit. Refactorises the lagged preconditioner factors from their
+  /// saved matrices (CHOLMOD is deterministic for the same matrix).
+  /// @throws std::invalid_argument on a size, time-step or solver mismatch or
+  /// non-finite positions or velocities (the simulator is unchanged then).
+  void restore(const SimulatorCheckpoint& c);
 
   /// External force of the last step (3N, newtons): gravity, point forces and surface
   /// loads, with ramped and follower loads as that step applied them.

@@ -548,7 +548,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
   }
   for (const std::string& o : overrides) apply_override(root, o);
-  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes", "contraction", "measure"});
+  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes", "contraction", "measure", "archive"});
 
   // Mesh, then the region of every element (first match wins).
   std::string mesh_file;
@@ -781,15 +781,37 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
       }
     }
   }
-  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), std::move(cavities), {}, {}};
+  ArchiveSettings archive;
+  if (top.has("archive")) {
+    Map a(ctx, top["archive"], "archive",
+          {"path", "flush_frames", "flush_seconds", "every", "velocities", "displacement", "checkpoint_every", "compression"});
+    archive.enabled = true;
+    if (!a.has("path")) ctx.fail(top["archive"], "archive.path", "required: the .h5 file to record into");
+    archive.path = text(ctx, a["path"], "archive.path");
+    if (archive.path.empty()) ctx.fail(a["path"], "archive.path", "must not be empty");
+    if (a.has("flush_frames")) archive.flush_frames = integer(ctx, a["flush_frames"], "archive.flush_frames", 1, 100000);
+    if (a.has("flush_seconds")) archive.flush_seconds = number(ctx, a["flush_seconds"], "archive.flush_seconds", 0, 3600);
+    if (a.has("every")) archive.every_steps = integer(ctx, a["every"], "archive.every", 1, 1000000);
+    if (a.has("velocities")) archive.velocities = choice(ctx, a["velocities"], "archive.velocities", {"true", "false"}) == "true";
+    if (a.has("displacement"))
+      archive.displacement = choice(ctx, a["displacement"], "archive.displacement", {"true", "false"}) == "true";
+    if (a.has("checkpoint_every")) archive.checkpoint_every_s = number(ctx, a["checkpoint_every"], "archive.checkpoint_every", 0, 1e9);
+    if (a.has("compression")) archive.compression = integer(ctx, a["compression"], "archive.compression", 0, 9);
+  }
+  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), std::move(cavities), {}, {}, {}, {}, {}, {}};
   // The hash covers what determines the run: the scene as parsed (after overrides; comments
   // and layout do not count) and the bytes of the files it reads (mesh, fibers, strokes).
+  // Recording (the archive key) does not change the run.
+  YAML::Node run_root = YAML::Clone(root);
+  run_root.remove("archive");
   YAML::Emitter canonical;
-  canonical << root;
+  canonical << run_root;
   std::string hashed = canonical.c_str();
+  scene.yaml_text = hashed;
+  scene.base_dir = base_dir;
+  scene.archive = archive;
   std::vector<std::string> hashed_files = files_read;
   if (!mesh_file.empty()) hashed_files.insert(hashed_files.begin(), mesh_file);
-  scene.canonical_yaml = hashed;
   for (const std::string& file : hashed_files) {
     std::string bytes;
     if (embedded && embedded->count(file)) {
@@ -804,7 +826,6 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   }
   scene.hash_sha256 = sha256_hex(hashed);
   scene.region_names = region_names;
-  scene.base_dir = base_dir;
   scene.mesh_file = mesh_file;
   return scene;
 }

@@ -39,6 +39,20 @@ struct CavityMeasure {
   core::CavitySurface surface;
 };
 
+/// Recording of the run into an HDF5 archive (scene key `archive`, docs/scenes.md and
+/// docs/archive.md). Ranges are checked when the scene is parsed.
+struct ArchiveSettings {
+  bool enabled = false;            ///< The scene has an `archive` key.
+  std::string path;                ///< archive.path: the .h5 file (relative to the working dir).
+  int flush_frames = 10;           ///< archive.flush_frames, frames, in [1, 100000]. Default 10.
+  double flush_seconds = 1.0;      ///< archive.flush_seconds, wall s, in [0, 3600]; 0 = by frames only. Default 1.
+  int every_steps = 1;             ///< archive.every: record every K-th step, in [1, 1000000]. Default 1.
+  bool velocities = false;         ///< archive.velocities. Default false.
+  bool displacement = true;        ///< archive.displacement (the sidecar's point data). Default true.
+  double checkpoint_every_s = 1.0; ///< archive.checkpoint_every, simulated s, in [0, 1e9]. Default 1.
+  int compression = 0;             ///< archive.compression: deflate level, in [0, 9]. Default 0.
+};
+
 /// Everything a scene file describes.
 struct Scene {
   std::string name;
@@ -54,13 +68,15 @@ struct Scene {
   std::string hash_sha256;
   /// The mesh file read (path as opened), or empty for a generator.
   std::string mesh_file;
-  /// The scene as parsed (after overrides), emitted canonically (comments and layout
-  /// dropped): parse_scene of this text with the same base_dir rebuilds the scene.
-  std::string canonical_yaml;
+  /// The scene as parsed (after overrides), emitted as YAML without the `archive` key:
+  /// parse_scene(yaml_text, ..., base_dir) gives the same scene (the run archive keeps it).
+  std::string yaml_text;
+  /// Where relative file paths of the scene are looked up (empty: the working dir).
+  std::string base_dir;
+  /// The `archive` key (recording does not change the run, so it is left out of the hash).
+  ArchiveSettings archive;
   /// Region names, by region id.
   std::vector<std::string> region_names;
-  /// Where relative file paths of the scene are looked up.
-  std::string base_dir;
 };
 
 /// Files held in memory (built-in scenes' meshes), by path as the scene resolves it

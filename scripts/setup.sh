@@ -15,6 +15,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev libpng-dev libssl-dev nlohmann-json3-dev
   cyclonedds-dev cyclonedds-tools libhdf5-dev hdf5-tools
+  # pvpython: the archive's XDMF sidecar is tested in ParaView's own reader
+  python3-paraview
   libosmesa6-dev ffmpeg
   python3 python3-venv time
   # the gmsh wheel's runtime libraries (scripts/make_*.py regenerate the shipped meshes)
@@ -40,7 +42,7 @@ else
 fi
 
 # Python packages (tests and tools) in a virtual environment beside the build.
-if ! .venv/bin/python -c "import meshio, gmsh, cyclonedds, fiberfem_client" 2>/dev/null; then
+if ! .venv/bin/python -c "import meshio, gmsh, h5py, cyclonedds, fiberfem_client" 2>/dev/null; then
   echo "setup: creating .venv with scripts/requirements.txt and the Python client (clients/python)"
   python3 -m venv .venv
   .venv/bin/pip install -q -r scripts/requirements.txt

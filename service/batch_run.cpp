@@ -6,6 +6,10 @@
 #include "core/simulator.hpp"
 #include "core/static_solver.hpp"
 
+#ifdef FIBERFEM_HAVE_ARCHIVE
+#include "service/archive/archive.hpp"
+#endif
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -15,6 +19,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <ostream>
 #include <stdexcept>
 
@@ -134,6 +139,24 @@ void draw_bar(double fraction, const std::string& text) {
 }
 
 }  // namespace
+
+bool has_archive() {
+#ifdef FIBERFEM_HAVE_ARCHIVE
+  return true;
+#else
+  return false;
+#endif
+}
+
+io::Scene scene_from_archive(const std::string& h5_path, const std::vector<std::string>& overrides) {
+#ifdef FIBERFEM_HAVE_ARCHIVE
+  const archive::ArchiveReader r(h5_path);
+  return io::parse_scene(r.header().scene_yaml, "archive:" + h5_path, r.header().scene_base_dir, overrides);
+#else
+  (void)overrides;
+  throw std::runtime_error("cannot read '" + h5_path + "': this fiberfem was built without HDF5 (FIBERFEM_WITH_HDF5)");
+#endif
+}
 
 int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
   const core::Model& model = sc.model;
@@ -259,7 +282,55 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
     double max_residual = 0, max_kinetic = e0.kinetic_j, max_speed = 0;
     std::string status = "completed", reason;
     auto last_draw = Clock::now();
-    for (int s = 1; s <= steps; ++s) {
+    // Resume (--resume RUN.h5[@t]): the archived checkpoint replaces the state; the run
+    // continues to the same end step. Recording starts with the state the loop starts from.
+    int first_step = 1;
+    if (!o.resume_path.empty()) {
+#ifdef FIBERFEM_HAVE_ARCHIVE
+      const archive::ArchiveReader from(o.resume_path);
+      const size_t k = o.resume_time_s < HUGE_VAL ? from.checkpoint_at_or_before(o.resume_time_s) : [&] {
+        if (from.checkpoints().empty()) throw std::invalid_argument("'" + o.resume_path + "' has no checkpoint to resume from");
+        return from.checkpoints().size() - 1;
+      }();
+      sim.restore(from.read_checkpoint(k));
+      first_step = static_cast<int>(sim.step_count()) + 1;
+      std::snprintf(line, sizeof line, "resume: from %s, checkpoint at t = %.6g s (step %ld)\n", o.resume_path.c_str(),
+                    sim.time_s(), sim.step_count());
+      out << line;
+      report["resumed_from"] = {{"archive", o.resume_path}, {"time_s", sim.time_s()}, {"step", sim.step_count()}};
+#else
+      throw std::runtime_error("--resume: this fiberfem was built without HDF5 (FIBERFEM_WITH_HDF5)");
+#endif
+    }
+#ifdef FIBERFEM_HAVE_ARCHIVE
+    std::unique_ptr<archive::ArchiveWriter> recorder;
+    std::vector<std::pair<std::string, double>> cavity_now;
+    auto measure_cavities = [&] {
+      cavity_now.clear();
+      for (const io::CavityMeasure& c : sc.cavities) cavity_now.emplace_back(c.name, core::cavity_volume(c.surface, sim.positions()));
+    };
+    if (o.archive.enabled) {
+      archive::ArchiveOptions ao;
+      ao.path = o.archive.path;
+      ao.flush_frames = o.archive.flush_frames;
+      ao.flush_seconds = o.archive.flush_seconds;
+      ao.every_steps = o.archive.every_steps;
+      ao.velocities = o.archive.velocities;
+      ao.displacement = o.archive.displacement;
+      ao.checkpoint_every_s = o.archive.checkpoint_every_s;
+      ao.compression = o.archive.compression;
+      recorder = std::make_unique<archive::ArchiveWriter>(ao, sc, sim, o.resume_path.empty() ? o.source : "resume:" + o.resume_path);
+      core::StepReport initial;
+      initial.time_s = sim.time_s();
+      measure_cavities();
+      recorder->record_frame(sim, initial, {cavity_now});
+      if (o.log_frames) out << "frame " << recorder->frames() << " step " << sim.step_count() << "\n" << std::flush;
+      report["archive"] = {{"path", ao.path}};
+    }
+#else
+    if (o.archive.enabled) throw std::runtime_error("--archive: this fiberfem was built without HDF5 (FIBERFEM_WITH_HDF5)");
+#endif
+    for (int s = first_step; s <= steps; ++s) {
       if (g_stop_signal) {
         status = "interrupted";
         reason = std::string("stopped by signal ") + (g_stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
@@ -280,7 +351,19 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       }
       for (size_t k = 0; k < sc.probes.size(); ++k) probe_u[k].add(sc.probes[k].displacement(model.mesh, sim.positions()).norm());
       if (contracting) stretch.add(mean_fiber_stretch());
-      for (size_t k = 0; k < volumes.size(); ++k) volumes[k].add(core::cavity_volume(sc.cavities[k].surface, sim.positions()));
+#ifdef FIBERFEM_HAVE_ARCHIVE
+      if (recorder) {
+        measure_cavities();
+        for (size_t k = 0; k < volumes.size(); ++k) volumes[k].add(cavity_now[k].second);
+        const long before = recorder->frames();
+        recorder->record_frame(sim, r, {cavity_now});
+        if (o.log_frames && recorder->frames() != before)
+          out << "frame " << recorder->frames() << " step " << sim.step_count() << "\n" << std::flush;
+      } else
+#endif
+      {
+        for (size_t k = 0; k < volumes.size(); ++k) volumes[k].add(core::cavity_volume(sc.cavities[k].surface, sim.positions()));
+      }
       ++steps_in_beat;
       total.rotations_s += r.time.rotations_s;
       total.assembly_s += r.time.assembly_s;
@@ -310,6 +393,15 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
       }
     }
     if (o.progress_bar) std::fprintf(stderr, "\n");
+#ifdef FIBERFEM_HAVE_ARCHIVE
+    if (recorder) {  // a last checkpoint (a run can be continued past its end), then the sidecar
+      recorder->checkpoint(sim, "{}");
+      const long frames = recorder->frames();
+      recorder->close();
+      out << "archive: " << o.archive.path << ": " << frames << " frames\n";
+      report["archive"]["frames"] = frames;
+    }
+#endif
     const double wall = seconds_since(t0);
     const core::Energies e1 = sim.energies();
 

@@ -10,6 +10,9 @@
 #include <CLI/CLI.hpp>
 
 #include <charconv>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -27,6 +30,10 @@ std::string format_number(double v) {
 
 struct RunArgs {
   std::string scene_file, builtin = "cantilever", solver, preconditioner, rotation, max_energy_gain;
+  std::string archive, resume;
+  int flush_frames = 0, record_every = 0, compression = -1;
+  double flush_seconds = -1, checkpoint_every = -1;
+  bool velocities = false;
   double dt = 0, tolerance = 0;
   std::vector<int> cells;
   BatchOptions o;
@@ -48,17 +55,55 @@ int run_command(CLI::App& run, RunArgs& a) {
   o.overrides = sets;
   o.progress_bar = isatty(fileno(stderr)) != 0;
 
+  // The archive: the scene's `archive` key, then the command line over it.
+  const auto with_archive = [&](io::Scene sc) {
+    io::ArchiveSettings& ar = sc.archive;
+    if (!a.archive.empty()) {
+      ar.enabled = true;
+      ar.path = a.archive;
+    }
+    const bool tuned = run.count("--flush-frames") || run.count("--flush-seconds") || run.count("--record-every") ||
+                       run.count("--velocities") || run.count("--checkpoint-every") || run.count("--compression");
+    if (tuned && !ar.enabled) throw std::invalid_argument("archive options need --archive RUN.h5 (or the scene's archive key)");
+    if (run.count("--flush-frames")) ar.flush_frames = a.flush_frames;
+    if (run.count("--flush-seconds")) ar.flush_seconds = a.flush_seconds;
+    if (run.count("--record-every")) ar.every_steps = a.record_every;
+    if (run.count("--velocities")) ar.velocities = a.velocities;
+    if (run.count("--checkpoint-every")) ar.checkpoint_every_s = a.checkpoint_every;
+    if (run.count("--compression")) ar.compression = a.compression;
+    o.archive = ar;
+    return sc;
+  };
+
   try {
+    if (!a.resume.empty()) {  // RUN.h5[@t]
+      const size_t at = a.resume.rfind('@');
+      o.resume_path = a.resume.substr(0, at);
+      if (at != std::string::npos) {
+        const std::string t = a.resume.substr(at + 1);
+        char* end = nullptr;
+        o.resume_time_s = std::strtod(t.c_str(), &end);
+        if (t.empty() || *end != '\0' || !std::isfinite(o.resume_time_s))
+          throw std::invalid_argument("--resume " + a.resume + ": '" + t + "' is not a time in seconds (RUN.h5@1.5)");
+      }
+      if (!a.archive.empty() && std::filesystem::exists(a.archive) && std::filesystem::exists(o.resume_path) &&
+          std::filesystem::equivalent(a.archive, o.resume_path))
+        throw std::invalid_argument("--archive must not be the archive being resumed from (" + a.archive + ")");
+      if (a.scene_file.empty()) {
+        o.source = "archive:" + o.resume_path;
+        return run_batch(with_archive(scene_from_archive(o.resume_path, o.overrides)), o, std::cout);
+      }
+    }
     if (!a.scene_file.empty()) {
       o.source = a.scene_file;
-      return run_batch(io::load_scene(a.scene_file, o.overrides), o, std::cout);
+      return run_batch(with_archive(io::load_scene(a.scene_file, o.overrides)), o, std::cout);
     }
     if (!builtin_scenes().count(a.builtin)) {
       std::cerr << "fiberfem: unknown built-in scene '" << a.builtin << "' (available: cantilever, heart)\n";
       return 2;
     }
     o.source = "builtin:" + a.builtin;
-    return run_batch(load_builtin_scene(a.builtin, o.overrides), o, std::cout);
+    return run_batch(with_archive(load_builtin_scene(a.builtin, o.overrides)), o, std::cout);
   } catch (const std::exception& e) {
     std::cerr << "fiberfem: " << e.what() << "\n";
     return 1;
@@ -89,6 +134,21 @@ void add_run_command(CLI::App& app, int& exit_code) {
   run->add_option("--rotation", a->rotation, "polar | svd (solver.rotation)")->check(CLI::IsMember({"svd", "polar"}));
   run->add_option("--max-energy-gain", a->max_energy_gain, "Energy check per step, relative; inf: off (solver.max_energy_gain)");
   run->add_option("--cells", a->cells, "Box cells along x y z (mesh.cells)")->expected(3)->check(CLI::Range(1, 2000));
+  // Recording (docs/archive.md); each also a key of the scene's `archive` mapping.
+  run->add_option("--archive", a->archive, "Record the run into this HDF5 archive (archive.path)");
+  run->add_option("--flush-frames", a->flush_frames, "Flush the archive every N frames (archive.flush_frames, default 10)")
+      ->check(CLI::Range(1, 100000));
+  run->add_option("--flush-seconds", a->flush_seconds, "... or every S s of wall time, 0: off (archive.flush_seconds, default 1)")
+      ->check(CLI::Range(0.0, 3600.0));
+  run->add_option("--record-every", a->record_every, "Record every K-th step (archive.every, default 1)")->check(CLI::Range(1, 1000000));
+  run->add_flag("--velocities", a->velocities, "Also record velocities (archive.velocities)");
+  run->add_option("--checkpoint-every", a->checkpoint_every, "Checkpoint every S simulated s, 0: first and last only (archive.checkpoint_every, default 1)")
+      ->check(CLI::Range(0.0, 1e9));
+  run->add_option("--compression", a->compression, "Deflate level 0-9 of the per-frame arrays (archive.compression, default 0)")
+      ->check(CLI::Range(0, 9));
+  run->add_flag("--log-frames", o.log_frames, "With --archive: print 'frame F step S' after each recorded frame");
+  run->add_option("--resume", a->resume,
+                  "Continue a recorded run from its checkpoint at or before a time: RUN.h5[@t] (the scene from the archive unless one is given)");
   run->callback([run, a, &exit_code] { exit_code = run_command(*run, *a); });
 }
 

@@ -14,6 +14,9 @@ int main(int argc, char** argv) {
   fiberfem::service::add_serve_command(app, exit_code);
   fiberfem::service::add_ctl_command(app, exit_code);
 #endif
+#ifdef FIBERFEM_HAVE_ARCHIVE
+  fiberfem::service::add_archive_command(app, exit_code);
+#endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

@@ -122,7 +122,7 @@ const std::vector<std::vector<std::string>> kMaterialForms = {
 
 RunControl::RunControl(io::Scene scene)
     : scene_(std::move(scene)),
-      scene_doc_(scene_.canonical_yaml),
+      scene_doc_(scene_.yaml_text),
       sim_(std::make_unique<core::Simulator>(scene_.model, scene_.settings)),
       base_loads_(scene_.model.loads) {}
 
@@ -222,7 +222,7 @@ CommandResult RunControl::dispatch(const std::string& kind, const std::string& t
     if (parameters) {
       auto fresh = std::make_unique<core::Simulator>(scene_.model, scene_.settings);
       sim_ = std::move(fresh);
-      scene_doc_ = scene_.canonical_yaml;
+      scene_doc_ = scene_.yaml_text;
       base_loads_ = scene_.model.loads;
       forces_.clear();
       ++topology_version_;

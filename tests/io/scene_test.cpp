@@ -443,3 +443,42 @@ TEST(Scene, MeasureCavities) {
   // The outer wall's triangles point the other way: a negative "cavity".
   expect_error(replace_once(yaml, "{node_set: endo}", "{node_set: epi}"), {"measure.cavities.lv", "select the cavity's own wall"});
 }
+
+// The archive key: defaults, every field, each bad value named with its key path; it
+// leaves the scene's hash alone (recording does not change the run), and yaml_text parses
+// back into the same scene.
+TEST(Scene, ArchiveKey) {
+  const sc::Scene plain = sc::parse_scene(kExample, "test.yaml");
+  EXPECT_FALSE(plain.archive.enabled);
+  const std::string yaml = std::string(kExample) +
+                           "archive: {path: run.h5, flush_frames: 5, flush_seconds: 0.5, every: 3, velocities: true,"
+                           " displacement: false, checkpoint_every: 2.5, compression: 1}\n";
+  const sc::Scene s = sc::parse_scene(yaml, "test.yaml");
+  EXPECT_TRUE(s.archive.enabled);
+  EXPECT_EQ(s.archive.path, "run.h5");
+  EXPECT_EQ(s.archive.flush_frames, 5);
+  EXPECT_EQ(s.archive.flush_seconds, 0.5);
+  EXPECT_EQ(s.archive.every_steps, 3);
+  EXPECT_TRUE(s.archive.velocities);
+  EXPECT_FALSE(s.archive.displacement);
+  EXPECT_EQ(s.archive.checkpoint_every_s, 2.5);
+  EXPECT_EQ(s.archive.compression, 1);
+  EXPECT_EQ(s.hash_sha256, plain.hash_sha256);
+  EXPECT_EQ(s.yaml_text.find("archive"), std::string::npos);
+  EXPECT_EQ(sc::parse_scene(s.yaml_text, "again.yaml").hash_sha256, plain.hash_sha256);
+  const sc::Scene d = sc::parse_scene(std::string(kExample) + "archive: {path: r.h5}\n", "test.yaml");
+  EXPECT_EQ(d.archive.flush_frames, 10);
+  EXPECT_EQ(d.archive.flush_seconds, 1.0);
+  EXPECT_EQ(d.archive.every_steps, 1);
+  EXPECT_TRUE(d.archive.displacement);
+  EXPECT_EQ(d.archive.checkpoint_every_s, 1.0);
+  EXPECT_EQ(d.archive.compression, 0);
+  expect_error(std::string(kExample) + "archive: {flush_frames: 5}\n", {"archive.path"});
+  expect_error(replace_once(yaml, "flush_frames: 5", "flush_frames: 0"), {"archive.flush_frames", "[1, 100000]"});
+  expect_error(replace_once(yaml, "flush_seconds: 0.5", "flush_seconds: -1"), {"archive.flush_seconds"});
+  expect_error(replace_once(yaml, "every: 3", "every: 0"), {"archive.every"});
+  expect_error(replace_once(yaml, "velocities: true", "velocities: maybe"), {"archive.velocities"});
+  expect_error(replace_once(yaml, "checkpoint_every: 2.5", "checkpoint_every: -2"), {"archive.checkpoint_every"});
+  expect_error(replace_once(yaml, "compression: 1", "compression: 12"), {"archive.compression"});
+  expect_error(replace_once(yaml, "compression: 1", "gzip: 1"), {"archive.gzip", "unknown key"});
+}

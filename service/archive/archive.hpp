@@ -1,0 +1,204 @@
+#pragma once
+/// @file The HDF5 run archive (docs/archive.md): one self-describing file per run, written
+/// once (mesh, fibers, materials, scene) and then appended frame by frame under SWMR, so a
+/// crash loses at most the frames since the last flush; periodic double-precision
+/// checkpoints seed bit-for-bit resumes; XDMF sidecars open it in ParaView and meshio.
+
+#include "core/simulator.hpp"
+#include "io/scene.hpp"
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace fiberfem::archive {
+
+/// Name and version of the file format (root attributes `format`, `format_version`).
+inline constexpr const char* kFormatName = "fiberfem-archive";
+inline constexpr int kFormatVersion = 1;
+
+/// How a run is recorded. Every field has a default; validate() names a bad one.
+struct ArchiveOptions {
+  std::string path;                ///< The .h5 file (created, truncating). Required.
+  /// Flush (make readable after a crash) after this many recorded frames, in [1, 100000].
+  /// Default 10.
+  int flush_frames = 10;
+  /// ... or when this much wall time has passed since the last flush, s, in [0, 3600];
+  /// 0: by frames only. Checked when a frame is recorded. Default 1.
+  double flush_seconds = 1.0;
+  int every_steps = 1;             ///< Record every K-th step, in [1, 1000000]. Default 1.
+  bool velocities = false;         ///< Also record velocities (float32). Default false.
+  /// Also record the displacement from rest (float32; the XDMF sidecar's point data, as
+  /// ParaView's Xdmf3 reader cannot subtract the rest positions itself). Default true.
+  bool displacement = true;
+  /// A checkpoint (double precision, resumable) every this much simulated time, s, in
+  /// [0, 1e9]; 0: only the first and the last. Default 1.
+  double checkpoint_every_s = 1.0;
+  /// Deflate level of the per-frame arrays (positions, velocities, activation), in [0, 9];
+  /// 0 stores them raw. Default 0 (measured in docs/archive.md: level 1 saves 8 to 11% of
+  /// the bytes of the heart's positions for 2x the recording time).
+  int compression = 0;
+  /// @throws std::invalid_argument naming the field.
+  void validate() const;
+};
+
+/// Per-frame values the caller measures (the writer computes the rest from the simulator).
+struct FrameExtras {
+  /// (name, volume in m^3) of each measured cavity, in the scene's measure.cavities order.
+  std::vector<std::pair<std::string, double>> cavity_volumes_m3;
+};
+
+/// A command the service applied or refused.
+struct CommandRecord {
+  long step = 0;         ///< Step count at which it took effect (applied before that step).
+  double time_s = 0;     ///< Simulation time then, s.
+  std::string id;        ///< The client's command id.
+  std::string kind;      ///< Command kind (e.g. "set_material").
+  std::string text;      ///< The command itself, JSON.
+  bool accepted = false; ///< Its acknowledgement.
+  std::string reason;    ///< Why it was refused (empty when accepted).
+};
+
+namespace detail {
+struct WriterFile;
+}
+
+/// Records a run. The constructor writes the header (mesh, fibers, materials, scene,
+/// solver settings) and a first checkpoint, creates every per-frame dataset and starts
+/// SWMR writing; after that readers may follow the file live.
+class ArchiveWriter {
+ public:
+  /// @param source where the scene came from (file path, "builtin:NAME", "resume:RUN.h5").
+  /// @throws std::invalid_argument for bad options, h5::Error if the file cannot be written.
+  ArchiveWriter(ArchiveOptions options, const io::Scene& scene, const core::Simulator& sim, std::string source);
+  ~ArchiveWriter();
+  ArchiveWriter(const ArchiveWriter&) = delete;
+  ArchiveWriter& operator=(const ArchiveWriter&) = delete;
+
+  /// Records the simulator's current state as a frame when its step count is a multiple
+  /// of every_steps (else does nothing); `r` is the report of the step just taken. Flushes
+  /// on the frame or wall-time cadence; writes a checkpoint every checkpoint_every_s.
+  void record_frame(const core::Simulator& sim, const core::StepReport& r, const FrameExtras& x);
+  /// Records a command (applied or refused).
+  void record_command(const CommandRecord& c);
+  /// Writes a resumable checkpoint of `sim` now; `parameter_state_json` is kept opaque
+  /// (the service stores the applied parameter commands; batch runs pass "{}").
+  void checkpoint(const core::Simulator& sim, const std::string& parameter_state_json);
+  /// Makes everything recorded so far durable against a crash of this process.
+  void flush();
+  /// Frames recorded so far.
+  long frames() const;
+  /// Flushes, closes the file and writes the XDMF sidecar. Idempotent; the destructor
+  /// calls it (swallowing errors).
+  void close();
+
+ private:
+  std::unique_ptr<detail::WriterFile> f_;
+};
+
+/// What the header holds (written once).
+struct ArchiveHeader {
+  int format_version = 0;
+  std::string software_version, git_commit, created_utc, source;
+  std::string scene_name, scene_yaml, scene_sha256;
+  std::string scene_base_dir;                  ///< Where the scene's relative paths resolve (absolute).
+  core::Positions rest_positions;              ///< 3 x N, m.
+  std::vector<core::Tet> tets;
+  std::vector<int> regions;                    ///< Per element.
+  std::vector<core::Tri> boundary_triangles;
+  std::vector<std::uint8_t> fixed_dofs;        ///< 3N, 1 = fixed.
+  std::vector<core::Vec3> fibers;              ///< Per element, unit.
+  std::vector<core::Mat6> stiffness_pa;        ///< Per region, Voigt, Pa.
+  std::vector<double> density_kg_m3;           ///< Per region.
+  double dt_s = 0;                             ///< Time step, s.
+  std::vector<std::string> cavity_names;       ///< Columns of Frame::cavity_volumes_m3.
+  std::vector<std::string> probe_names;        ///< Columns of Frame::probe_displacements_m.
+  bool has_velocities = false;
+  bool has_displacement = false;
+  int every_steps = 1;
+};
+
+/// One recorded frame.
+struct Frame {
+  long step = 0;
+  double time_s = 0;
+  core::Positions positions;                   ///< 3 x N, m (stored float32).
+  core::Positions velocities;                  ///< 3 x N, m/s, or empty.
+  core::Positions displacement;                ///< 3 x N, m (stored float32), or empty.
+  std::vector<double> activation_pa;           ///< Per element (stored float32), empty when off.
+  std::vector<double> cavity_volumes_m3;       ///< Per cavity.
+  std::vector<core::Vec3> probe_displacements_m;  ///< Per probe.
+  /// Kinetic and elastic energy of the state the step started from (StepReport), J.
+  double kinetic_energy_j = 0, elastic_energy_j = 0;
+  int solver_iterations = 0, substeps = 1, inverted_elements = 0;
+  double solver_residual = 0;
+  std::string status;                          ///< "ok", "recovered" or "failed".
+};
+
+/// A checkpoint's place in the archive.
+struct CheckpointInfo {
+  long step = 0;
+  double time_s = 0;
+};
+
+/// Reads an archive, closed or live. As a SWMR reader (`follow`) refresh() picks up the
+/// frames a live writer has flushed since.
+class ArchiveReader {
+ public:
+  /// @throws std::runtime_error naming the file and what is wrong (not HDF5, not an
+  /// archive, unsupported version, missing dataset).
+  explicit ArchiveReader(const std::string& path, bool follow = false);
+  ~ArchiveReader();
+  ArchiveReader(ArchiveReader&&) noexcept;
+  ArchiveReader& operator=(ArchiveReader&&) noexcept;
+
+  const ArchiveHeader& header() const { return header_; }
+  /// Complete frames (every per-frame dataset has them), as of the last refresh.
+  long frames() const { return frames_; }
+  /// Re-reads the extents written by a live writer (SWMR). @return frames().
+  long refresh();
+  std::vector<double> times() const;
+  std::vector<long> steps() const;
+  /// Frame `i` in [0, frames()). @throws std::out_of_range.
+  Frame frame(long i) const;
+  std::vector<CommandRecord> commands() const;
+  std::vector<CheckpointInfo> checkpoints() const;
+  /// Index of the last checkpoint at or before `time_s` (with 1e-9 s slack).
+  /// @throws std::invalid_argument listing the checkpoint times when there is none.
+  size_t checkpoint_at_or_before(double time_s) const;
+  /// Reads checkpoint `k`; its parameter-state JSON into `parameter_state` if given.
+  core::SimulatorCheckpoint read_checkpoint(size_t k, std::string* parameter_state = nullptr) const;
+  const std::string& path() const { return path_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::string path_;
+  ArchiveHeader header_;
+  long frames_ = 0;
+};
+
+/// Writes RUN.xdmf beside RUN.h5 (time series: geometry per frame by hyperslab,
+/// displacement and activation per frame, region), readable by ParaView's Xdmf3 reader.
+/// Opens the archive as a SWMR reader, so it works on live files too.
+void write_xdmf(const std::string& h5_path);
+
+/// Makes a file whose SWMR writer died openable by ordinary readers (clears the file's
+/// consistency flags), checks that its frames read, and regenerates the sidecar.
+/// @return the number of intact frames.
+long recover(const std::string& h5_path);
+
+/// Writes `out_xdmf` and beside it OUT.h5 with one dataset per step (the layout meshio's
+/// XDMF TimeSeriesReader reads): the rest mesh, and per step point data `positions` and
+/// `displacement` (m), cell data `activation` (Pa).
+void export_meshio(const std::string& h5_path, const std::string& out_xdmf);
+
+/// `fiberfem` version and the git commit it was built from ("unknown" outside a repo).
+std::string software_version();
+std::string git_commit();
+
+}  // namespace fiberfem::archive

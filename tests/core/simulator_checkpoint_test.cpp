@@ -1,0 +1,128 @@
+// Simulator::checkpoint / restore: a run restored from a checkpoint continues bit-for-bit
+// like the uninterrupted run (compared with ==), for the contracting default heart and
+// for the palm tree under a drag, both with PCG and the lagged Cholesky preconditioner.
+// The shipped scenes are read through io (the core itself reads no files).
+
+#include "core/simulator.hpp"
+#include "io/scene.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+namespace fiberfem {
+namespace {
+
+using testing::expect_invalid;
+
+struct Trace {
+  std::vector<Eigen::VectorXd> x, v;
+  std::vector<int> iterations, factorizations;
+  std::vector<double> times;
+};
+
+void run(core::Simulator& sim, int steps, Trace& t) {
+  for (int i = 0; i < steps; ++i) {
+    const core::StepReport r = sim.step();
+    ASSERT_NE(r.status, core::StepStatus::failed) << r.message;
+    t.x.emplace_back(Eigen::Map<const Eigen::VectorXd>(sim.positions().data(), sim.positions().size()));
+    t.v.emplace_back(Eigen::Map<const Eigen::VectorXd>(sim.velocities().data(), sim.velocities().size()));
+    t.iterations.push_back(r.solver_iterations);
+    t.factorizations.push_back(r.solver_factorizations);
+    t.times.push_back(sim.time_s());
+  }
+}
+
+void expect_resume_is_exact(const std::string& scene_file, int before, int after) {
+  const io::Scene scene = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/" + scene_file);
+  ASSERT_EQ(scene.settings.solver.method, core::LinearSolverKind::pcg);
+  ASSERT_EQ(scene.settings.solver.preconditioner, core::PreconditionerKind::cholesky);
+  core::Simulator whole(scene.model, scene.settings);
+  Trace head, tail;
+  run(whole, before, head);
+  const core::SimulatorCheckpoint c = whole.checkpoint();
+  EXPECT_EQ(c.step_count, before);
+  EXPECT_FALSE(c.solver.factors.empty()) << "the checkpoint should carry a lagged factor";
+  run(whole, after, tail);
+
+  core::Simulator resumed(scene.model, scene.settings);  // fresh: no history, no factor
+  resumed.restore(c);
+  EXPECT_EQ(resumed.time_s(), c.time_s);
+  EXPECT_EQ(resumed.step_count(), before);
+  Trace again;
+  run(resumed, after, again);
+  ASSERT_EQ(again.x.size(), tail.x.size());
+  for (size_t i = 0; i < tail.x.size(); ++i) {
+    EXPECT_TRUE(again.x[i] == tail.x[i]) << "positions differ at step " << before + i + 1 << " by "
+                                         << (again.x[i] - tail.x[i]).cwiseAbs().maxCoeff();
+    EXPECT_TRUE(again.v[i] == tail.v[i]) << "velocities differ at step " << before + i + 1;
+    EXPECT_EQ(again.iterations[i], tail.iterations[i]) << "step " << before + i + 1;
+    EXPECT_EQ(again.factorizations[i], tail.factorizations[i]) << "step " << before + i + 1;
+    EXPECT_EQ(again.times[i], tail.times[i]);
+  }
+  if (scene.model.contraction.enabled()) {
+    EXPECT_TRUE(resumed.active_tension() == whole.active_tension());
+  }
+
+  // A restart without the solver state (positions and velocities only) is NOT exact:
+  // the test would catch a restore that forgot the solver's memory.
+  core::Simulator plain(scene.model, scene.settings);
+  core::SimulatorCheckpoint bare = c;
+  bare.solver = core::Simulator(scene.model, scene.settings).checkpoint().solver;
+  plain.restore(bare);
+  Trace differs;
+  run(plain, after, differs);
+  bool all_equal = true;
+  for (size_t i = 0; i < tail.x.size(); ++i) all_equal = all_equal && differs.x[i] == tail.x[i];
+  EXPECT_FALSE(all_equal) << "dropping the solver state changed nothing: the test has no teeth";
+}
+
+TEST(SimulatorCheckpoint, ContractingHeartResumesBitForBit) { expect_resume_is_exact("heart.yaml", 17, 15); }
+
+TEST(SimulatorCheckpoint, PalmUnderDragResumesBitForBit) { expect_resume_is_exact("palm-drag.yaml", 23, 20); }
+
+TEST(SimulatorCheckpoint, RestoreInPlaceRewindsTheSameSimulator) {
+  const io::Scene scene = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/palm-drag.yaml");
+  core::Simulator sim(scene.model, scene.settings);
+  Trace a, b, c;
+  run(sim, 5, a);
+  const core::SimulatorCheckpoint cp = sim.checkpoint();
+  run(sim, 8, b);
+  sim.restore(cp);  // the service's in-memory checkpoint/restore commands
+  run(sim, 8, c);
+  for (size_t i = 0; i < b.x.size(); ++i) EXPECT_TRUE(b.x[i] == c.x[i]) << "step " << i;
+}
+
+TEST(SimulatorCheckpoint, MismatchedCheckpointsAreRefusedByName) {
+  const io::Scene palm = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/palm-drag.yaml");
+  core::Simulator sim(palm.model, palm.settings);
+  sim.step();
+  const core::SimulatorCheckpoint good = sim.checkpoint();
+  core::Simulator target(palm.model, palm.settings);
+  const Eigen::VectorXd x_before = Eigen::Map<const Eigen::VectorXd>(target.positions().data(), target.positions().size());
+
+  core::SimulatorCheckpoint c = good;
+  c.num_nodes += 1;
+  expect_invalid([&] { target.restore(c); }, {"restore", "nodes"});
+  c = good;
+  c.dt_s *= 2;
+  expect_invalid([&] { target.restore(c); }, {"restore", "time step"});
+  c = good;
+  c.x(4) = std::nan("");
+  expect_invalid([&] { target.restore(c); }, {"non-finite"});
+  c = good;
+  c.q.pop_back();
+  expect_invalid([&] { target.restore(c); }, {"rotations"});
+  c = good;
+  c.solver.solver_name = "cholmod";
+  expect_invalid([&] { target.restore(c); }, {"solver", "cholmod"});
+  c = good;
+  ASSERT_FALSE(c.solver.factors.empty());
+  c.solver.factors[0].matrix_values.conservativeResize(3);
+  expect_invalid([&] { target.restore(c); }, {"factor"});
+  // Refused restores leave the target untouched.
+  EXPECT_TRUE(Eigen::Map<const Eigen::VectorXd>(target.positions().data(), target.positions().size()) == x_before);
+  EXPECT_EQ(target.step_count(), 0);
+}
+
+}  // namespace
+}  // namespace fiberfem
