@@ -165,6 +165,7 @@ SimulatorCheckpoint Simulator::checkpoint() const {
   c.active_tension_pa = active_;
   c.f_ext = f_ext_;
   c.energy_floor_j = energy_floor_j_;
+  c.contraction_origin_s = contraction_origin_s_;
   c.solver = solver_->save_state();
   return c;
 }
@@ -205,6 +206,7 @@ void Simulator::restore(const SimulatorCheckpoint& c) {
   active_ = c.active_tension_pa;
   f_ext_ = c.f_ext;
   energy_floor_j_ = c.energy_floor_j;
+  contraction_origin_s_ = c.contraction_origin_s;
 }
 
 void Simulator::apply_fixed() {

@@ -106,6 +106,7 @@ struct SimulatorCheckpoint {
   std::vector<double> active_tension_pa;   ///< Per element, Pa (empty: contraction off).
   Eigen::VectorXd f_ext;             ///< External force of the last step, 3N, N.
   double energy_floor_j = 0;         ///< Round-off scale of the energy check, J.
+  double contraction_origin_s = 0;   ///< Where beats are counted from (set_contraction), s.
   LinearSolverState solver;          ///< Recycled solutions and lagged factors.
 };
 

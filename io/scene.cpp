@@ -535,6 +535,26 @@ core::Contraction contraction(const Ctx& ctx, const YAML::Node& node, const core
   return con;
 }
 
+// archive (docs/archive.md): where and how a run is recorded.
+ArchiveSettings archive_settings(const Ctx& ctx, const YAML::Node& node) {
+  ArchiveSettings archive;
+  Map a(ctx, node, "archive",
+        {"path", "flush_frames", "flush_seconds", "every", "velocities", "displacement", "checkpoint_every", "compression"});
+  archive.enabled = true;
+  if (!a.has("path")) ctx.fail(node, "archive.path", "required: the .h5 file to record into");
+  archive.path = text(ctx, a["path"], "archive.path");
+  if (archive.path.empty()) ctx.fail(a["path"], "archive.path", "must not be empty");
+  if (a.has("flush_frames")) archive.flush_frames = integer(ctx, a["flush_frames"], "archive.flush_frames", 1, 100000);
+  if (a.has("flush_seconds")) archive.flush_seconds = number(ctx, a["flush_seconds"], "archive.flush_seconds", 0, 3600);
+  if (a.has("every")) archive.every_steps = integer(ctx, a["every"], "archive.every", 1, 1000000);
+  if (a.has("velocities")) archive.velocities = choice(ctx, a["velocities"], "archive.velocities", {"true", "false"}) == "true";
+  if (a.has("displacement"))
+    archive.displacement = choice(ctx, a["displacement"], "archive.displacement", {"true", "false"}) == "true";
+  if (a.has("checkpoint_every")) archive.checkpoint_every_s = number(ctx, a["checkpoint_every"], "archive.checkpoint_every", 0, 1e9);
+  if (a.has("compression")) archive.compression = integer(ctx, a["compression"], "archive.compression", 0, 9);
+  return archive;
+}
+
 }  // namespace
 
 Scene parse_scene(const std::string& yaml_text, const std::string& origin, const std::string& base_dir,
@@ -782,22 +802,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     }
   }
   ArchiveSettings archive;
-  if (top.has("archive")) {
-    Map a(ctx, top["archive"], "archive",
-          {"path", "flush_frames", "flush_seconds", "every", "velocities", "displacement", "checkpoint_every", "compression"});
-    archive.enabled = true;
-    if (!a.has("path")) ctx.fail(top["archive"], "archive.path", "required: the .h5 file to record into");
-    archive.path = text(ctx, a["path"], "archive.path");
-    if (archive.path.empty()) ctx.fail(a["path"], "archive.path", "must not be empty");
-    if (a.has("flush_frames")) archive.flush_frames = integer(ctx, a["flush_frames"], "archive.flush_frames", 1, 100000);
-    if (a.has("flush_seconds")) archive.flush_seconds = number(ctx, a["flush_seconds"], "archive.flush_seconds", 0, 3600);
-    if (a.has("every")) archive.every_steps = integer(ctx, a["every"], "archive.every", 1, 1000000);
-    if (a.has("velocities")) archive.velocities = choice(ctx, a["velocities"], "archive.velocities", {"true", "false"}) == "true";
-    if (a.has("displacement"))
-      archive.displacement = choice(ctx, a["displacement"], "archive.displacement", {"true", "false"}) == "true";
-    if (a.has("checkpoint_every")) archive.checkpoint_every_s = number(ctx, a["checkpoint_every"], "archive.checkpoint_every", 0, 1e9);
-    if (a.has("compression")) archive.compression = integer(ctx, a["compression"], "archive.compression", 0, 9);
-  }
+  if (top.has("archive")) archive = archive_settings(ctx, top["archive"]);
   Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), std::move(cavities), {}, {}, {}, {}, {}, {}};
   // The hash covers what determines the run: the scene as parsed (after overrides; comments
   // and layout do not count) and the bytes of the files it reads (mesh, fibers, strokes).
@@ -865,6 +870,11 @@ core::Contraction parse_contraction(const std::string& yaml_text, const core::Te
     throw SceneError(origin + ": contraction: " + e.what());
   }
   return c;
+}
+
+ArchiveSettings parse_archive_settings(const std::string& yaml_text, const std::string& origin) {
+  const Ctx ctx{origin, {}, nullptr};
+  return archive_settings(ctx, load_section(yaml_text, origin));
 }
 
 std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::TetMesh& mesh, const std::string& base_dir,

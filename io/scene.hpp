@@ -105,6 +105,8 @@ core::Material parse_material(const std::string& yaml_text, const std::string& o
 /// delays are computed on the rest mesh), validated.
 core::Contraction parse_contraction(const std::string& yaml_text, const core::TetMesh& mesh,
                                     const std::vector<std::string>& region_names, const std::string& origin);
+/// The `archive` mapping (path, flush_frames, ...), for start_recording.
+ArchiveSettings parse_archive_settings(const std::string& yaml_text, const std::string& origin);
 /// The `fibers` mapping (uniform, rule, strokes, file) for this mesh, per element.
 std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::TetMesh& mesh,
                                      const std::string& base_dir, const std::string& origin);

@@ -16,6 +16,9 @@ const std::map<std::string, std::string>& builtin_scenes();
 
 /// Parses a built-in scene with its embedded files.
 /// @throws io::SceneError for an unknown name or a bad override.
+/// The files the built-in scenes read (their meshes), by the path the scenes resolve.
+const io::EmbeddedFiles& embedded_files();
+
 io::Scene load_builtin_scene(const std::string& name, const std::vector<std::string>& overrides = {});
 
 }  // namespace fiberfem::service

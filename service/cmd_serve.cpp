@@ -7,7 +7,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <memory>
 #include <unistd.h>
@@ -16,22 +18,46 @@ namespace fiberfem::service {
 namespace {
 
 struct ServeArgs {
-  std::string scene_file, builtin = "heart";
+  std::string scene_file, builtin = "heart", archive, resume;
+  int flush_frames = 0;
+  double flush_seconds = -1;
   std::vector<std::string> overrides;
   bool fast = false;
   ServeOptions o;
 };
 
-int serve_command(ServeArgs& a) {
+int serve_command(CLI::App& cmd, ServeArgs& a) {
   a.o.realtime = !a.fast;
   a.o.status_line = isatty(fileno(stderr)) != 0;
   try {
-    if (!a.scene_file.empty()) {
-      a.o.source = a.scene_file;
-      return serve(io::load_scene(a.scene_file, a.overrides), a.o, std::cout);
+    if (!a.resume.empty()) {  // RUN.h5[@t]
+      const size_t at = a.resume.rfind('@');
+      a.o.resume_path = a.resume.substr(0, at);
+      if (at != std::string::npos) {
+        const std::string t = a.resume.substr(at + 1);
+        char* end = nullptr;
+        a.o.resume_time_s = std::strtod(t.c_str(), &end);
+        if (t.empty() || *end != '\0' || !std::isfinite(a.o.resume_time_s))
+          throw std::invalid_argument("--resume " + a.resume + ": '" + t + "' is not a time in seconds (RUN.h5@1.5)");
+      }
     }
-    a.o.source = "builtin:" + a.builtin;
-    return serve(load_builtin_scene(a.builtin, a.overrides), a.o, std::cout);
+    io::Scene scene = [&] {
+      if (!a.scene_file.empty()) {
+        a.o.source = a.scene_file;
+        return io::load_scene(a.scene_file, a.overrides);
+      }
+      a.o.source = "builtin:" + a.builtin;
+      a.o.files = &embedded_files();
+      return load_builtin_scene(a.builtin, a.overrides);
+    }();
+    // Recording: the scene's archive key, then the command line over it.
+    a.o.archive = scene.archive;
+    if (!a.archive.empty()) a.o.archive.enabled = true, a.o.archive.path = a.archive;
+    if ((cmd.count("--flush-frames") || cmd.count("--flush-seconds")) && !a.o.archive.enabled)
+      throw std::invalid_argument("--flush-frames and --flush-seconds need --archive RUN.h5 (or the scene's archive key)");
+    if (cmd.count("--flush-frames")) a.o.archive.flush_frames = a.flush_frames;
+    if (cmd.count("--flush-seconds")) a.o.archive.flush_seconds = a.flush_seconds;
+    return serve(scene, a.o, std::cout);
   } catch (const std::exception& e) {
     std::cerr << "fiberfem serve: " << e.what() << "\n";
     return 1;
@@ -57,7 +83,13 @@ void add_serve_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--until", a->o.until_s, "Stop at this simulation time, s (default: run until shut down)")->check(CLI::NonNegativeNumber);
   cmd->add_flag("--surface-only", a->o.surface_only, "States carry the boundary nodes only");
   cmd->add_flag("--paused", a->o.start_paused, "Start paused (resume or step by command)");
-  cmd->callback([a, &exit_code] { exit_code = serve_command(*a); });
+  cmd->add_option("--archive", a->archive, "Record the run into this HDF5 archive (docs/archive.md; the scene key archive.path)");
+  cmd->add_option("--flush-frames", a->flush_frames, "Flush the archive every N frames (archive.flush_frames, default 10)")
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--flush-seconds", a->flush_seconds, "... or every S s of wall time, 0: off (archive.flush_seconds, default 1)")
+      ->check(CLI::Range(0.0, 3600.0));
+  cmd->add_option("--resume", a->resume, "Start from an archive's checkpoint at or before a time: RUN.h5[@t] (with the parameters it ran with)");
+  cmd->callback([cmd, a, &exit_code] { exit_code = serve_command(*cmd, *a); });
 }
 
 }  // namespace fiberfem::service

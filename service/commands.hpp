@@ -17,6 +17,9 @@ void add_serve_command(CLI::App& app, int& exit_code);
 
 /// `fiberfem ctl`: the command-line client (clients/ctl; built with FIBERFEM_WITH_DDS).
 void add_ctl_command(CLI::App& app, int& exit_code);
+/// `fiberfem replay RUN.h5`: an archive republished on DDS (cmd_replay.cpp; DDS and HDF5).
+void add_replay_command(CLI::App& app, int& exit_code);
+
 /// `fiberfem archive info|recover|export-meshio`: run archives (cmd_archive.cpp; built
 /// with FIBERFEM_WITH_HDF5).
 void add_archive_command(CLI::App& app, int& exit_code);

@@ -16,6 +16,9 @@ int main(int argc, char** argv) {
 #endif
 #ifdef FIBERFEM_HAVE_ARCHIVE
   fiberfem::service::add_archive_command(app, exit_code);
+#if defined(FIBERFEM_WITH_DDS)
+  fiberfem::service::add_replay_command(app, exit_code);
+#endif
 #endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;

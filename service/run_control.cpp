@@ -4,6 +4,7 @@
 
 #include "service/run_control.hpp"
 
+#include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -120,17 +121,65 @@ const std::vector<std::vector<std::string>> kMaterialForms = {
 
 }  // namespace
 
-RunControl::RunControl(io::Scene scene)
+RunControl::RunControl(io::Scene scene, const io::EmbeddedFiles* files)
     : scene_(std::move(scene)),
       scene_doc_(scene_.yaml_text),
       sim_(std::make_unique<core::Simulator>(scene_.model, scene_.settings)),
-      base_loads_(scene_.model.loads) {}
+      base_loads_(scene_.model.loads) {
+  files_ = files;
+}
+
+std::string RunControl::parameter_state_json() const {
+  nlohmann::json forces = nlohmann::json::array();
+  for (const auto& [name, f] : forces_) {
+    nlohmann::json fn = nlohmann::json::array();
+    for (const core::Vec3& v : f.force_n) fn.push_back({v.x(), v.y(), v.z()});
+    forces.push_back({{"name", name}, {"nodes", f.nodes}, {"force_n", fn},
+                      {"until_s", std::isfinite(f.until_s) ? nlohmann::json(f.until_s) : nlohmann::json()}});
+  }
+  return nlohmann::json{{"scene_yaml", scene_doc_}, {"forces", forces}}.dump();
+}
+
+io::Scene RunControl::running_scene() const {
+  io::Scene s = io::parse_scene(scene_doc_, scene_.name + " (running)", scene_.base_dir, {}, files_);
+  s.archive = scene_.archive;
+  return s;
+}
+
+void RunControl::restore_parameter_state(const std::string& text) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::invalid_argument(std::string("parameter state is not JSON: ") + e.what());
+  }
+  if (!j.is_object() || !j.contains("scene_yaml")) throw std::invalid_argument("parameter state has no scene_yaml");
+  const std::string doc = j["scene_yaml"].get<std::string>();
+  io::Scene s = io::parse_scene(doc, "parameter state", scene_.base_dir, {}, files_);
+  std::map<std::string, AppliedForce> forces;
+  for (const auto& f : j.value("forces", nlohmann::json::array())) {
+    AppliedForce a;
+    a.nodes = f.at("nodes").get<std::vector<int>>();
+    for (const auto& v : f.at("force_n")) a.force_n.emplace_back(v.at(0).get<double>(), v.at(1).get<double>(), v.at(2).get<double>());
+    if (f.contains("until_s") && !f["until_s"].is_null()) a.until_s = f["until_s"].get<double>();
+    for (int n : a.nodes)
+      if (n < 0 || n >= s.model.mesh.num_nodes()) throw std::invalid_argument("parameter state: force node out of range");
+    forces[f.at("name").get<std::string>()] = a;
+  }
+  auto sim = std::make_unique<core::Simulator>(s.model, s.settings);
+  sim_ = std::move(sim);
+  base_loads_ = s.model.loads;
+  forces_ = std::move(forces);
+  scene_doc_ = doc;
+  refresh_loads();
+  ++topology_version_;
+}
 
 const std::vector<std::string>& RunControl::kinds() {
   static const std::vector<std::string> k = {
       "pause",       "resume",          "step",       "reset",         "shutdown",      "apply_force",
       "clear_force", "set_material",    "set_damping", "set_contraction", "set_fibers", "set_gravity",
-      "set_time_step", "set_solver"};
+      "set_time_step", "set_solver", "checkpoint", "restore"};
   return k;
 }
 
@@ -230,6 +279,27 @@ CommandResult RunControl::dispatch(const std::string& kind, const std::string& t
     }
     sim.reset();
     return {true, "reset to rest"};
+  }
+  if (kind == "checkpoint") {
+    Args a(text, {"name"});
+    const std::string name = a.has("name") ? a.text("name") : "default";
+    if (name.empty()) throw Reject("'name' must not be empty");
+    checkpoints_[name] = Saved{sim.checkpoint(), parameter_state_json()};
+    return {true, "checkpoint '" + name + "' at t = " + std::to_string(sim.time_s()) + " s"};
+  }
+  if (kind == "restore") {
+    Args a(text, {"name"});
+    const std::string name = a.has("name") ? a.text("name") : "default";
+    const auto it = checkpoints_.find(name);
+    if (it == checkpoints_.end()) {
+      std::vector<std::string> names;
+      for (const auto& kv : checkpoints_) names.push_back(kv.first);
+      throw Reject("no checkpoint '" + name + "'" + (names.empty() ? " (none saved)" : " (saved: " + join(names) + ")"));
+    }
+    // Parameters changed since: rebuild for the saved ones first (the state only fits them).
+    if (it->second.parameters != parameter_state_json()) restore_parameter_state(it->second.parameters);
+    sim_->restore(it->second.state);
+    return {true, "restored '" + name + "' (t = " + std::to_string(sim_->time_s()) + " s)"};
   }
   if (kind == "apply_force") {
     Args a(text, {"name", "target", "force", "magnitude", "along", "duration"});

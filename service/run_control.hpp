@@ -34,8 +34,21 @@ struct AppliedForce {
 
 class RunControl {
  public:
-  /// Builds the simulator of `scene`. @throws std::invalid_argument as Simulator does.
-  explicit RunControl(io::Scene scene);
+  /// Builds the simulator of `scene`; `files` are the in-memory files a built-in scene
+  /// reads (kept for re-parsing the running scene). @throws std::invalid_argument as
+  /// Simulator does.
+  explicit RunControl(io::Scene scene, const io::EmbeddedFiles* files = nullptr);
+
+  /// The running parameters as JSON: {"scene_yaml": the scene with every accepted
+  /// parameter command merged in, "forces": [...]}. With the simulator's checkpoint it
+  /// resumes the run exactly (restore_parameter_state, then Simulator::restore).
+  std::string parameter_state_json() const;
+  /// Rebuilds the simulator for a parameter state (the scene text re-parsed, forces
+  /// re-applied); the state is then the rest state until Simulator::restore.
+  /// @throws std::invalid_argument (io::SceneError) naming what is wrong.
+  void restore_parameter_state(const std::string& json);
+  /// The running scene (scene_yaml parsed again): what a recording started now records.
+  io::Scene running_scene() const;
 
   /// Applies one command now (between steps). Never throws.
   CommandResult apply(const std::string& kind, const std::string& args_json);
@@ -69,6 +82,12 @@ class RunControl {
 
   io::Scene scene_;        // as loaded (reset with parameters restores it)
   std::string scene_doc_;  // the running scene's YAML (commands merged in)
+  const io::EmbeddedFiles* files_ = nullptr;
+  struct Saved {
+    core::SimulatorCheckpoint state;
+    std::string parameters;
+  };
+  std::map<std::string, Saved> checkpoints_;  // named, in memory (checkpoint / restore)
   std::unique_ptr<core::Simulator> sim_;
   core::Loads base_loads_;  // the scene's loads with commanded gravity (forces come on top)
   std::map<std::string, AppliedForce> forces_;

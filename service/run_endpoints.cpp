@@ -90,12 +90,12 @@ void RunEndpoints::publish_status(const StatusData& d) {
   status_.write(st);
 }
 
-int RunEndpoints::handle_commands(const std::function<CommandReply(const std::string&, const std::string&)>& apply,
+int RunEndpoints::handle_commands(const std::function<CommandReply(const std::string&, const std::string&, const std::string&)>& apply,
                                   const std::function<std::pair<unsigned long, unsigned>()>& stamp) {
   int n = 0;
   commands_.take([&](const fiberfem_Command& c, const dds_sample_info_t&) {
     if (dds::str(c.run_id) != run_id_) return;  // another run's
-    const CommandReply r = apply(dds::str(c.kind), dds::str(c.args));
+    const CommandReply r = apply(dds::str(c.kind), dds::str(c.args), dds::str(c.command_id));
     const auto [frame, version] = stamp();
     std::string reason = r.reason;
     fiberfem_CommandAck ack{};

@@ -55,10 +55,10 @@ class RunEndpoints {
   void publish_state(unsigned long frame, double time_s, unsigned parameter_version, std::vector<float>& positions,
                      std::vector<float>& activation);
   void publish_status(const StatusData& s);
-  /// Takes the commands addressed to this run, calls `apply(kind, args)` for each and
+  /// Takes the commands addressed to this run, calls `apply(kind, args, id)` for each and
   /// acknowledges it with the frame and parameter version `stamp()` gives after it.
   /// @return the number of commands handled.
-  int handle_commands(const std::function<CommandReply(const std::string& kind, const std::string& args)>& apply,
+  int handle_commands(const std::function<CommandReply(const std::string& kind, const std::string& args, const std::string& id)>& apply,
                       const std::function<std::pair<unsigned long, unsigned>()>& stamp);
   /// Blocks until a command may be waiting or `timeout` passes.
   void wait_for_command(std::chrono::nanoseconds timeout) { commands_.wait(timeout); }

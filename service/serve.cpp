@@ -4,6 +4,10 @@
 #include "service/serve.hpp"
 
 #include "service/run_endpoints.hpp"
+#ifdef FIBERFEM_HAVE_ARCHIVE
+#include "core/cavity.hpp"
+#include "service/archive/archive.hpp"
+#endif
 #include "service/run_control.hpp"
 
 #include <algorithm>
@@ -77,9 +81,35 @@ void ServeOptions::validate() const {
 
 int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out) {
   options.validate();
-  RunControl rc(scene);
+  RunControl rc(scene, options.files);
+  if (!options.resume_path.empty()) {
+#ifdef FIBERFEM_HAVE_ARCHIVE
+    // The archived checkpoint and the parameters it ran with (a served run's checkpoints
+    // carry the running scene and forces; a batch run's, none: the archived scene).
+    const archive::ArchiveReader from(options.resume_path);
+    const size_t k = options.resume_time_s < HUGE_VAL ? from.checkpoint_at_or_before(options.resume_time_s) : [&] {
+      if (from.checkpoints().empty()) throw std::invalid_argument("'" + options.resume_path + "' has no checkpoint to resume from");
+      return from.checkpoints().size() - 1;
+    }();
+    std::string params;
+    const core::SimulatorCheckpoint cp = from.read_checkpoint(k, &params);
+    if (params.find("scene_yaml") != std::string::npos) rc.restore_parameter_state(params);
+    rc.simulator().restore(cp);
+    out << "fiberfem serve: resumed from " << options.resume_path << " at t = " << rc.simulator().time_s() << " s (step "
+        << rc.simulator().step_count() << ")\n";
+#else
+    throw std::runtime_error("--resume: this fiberfem was built without HDF5 (FIBERFEM_WITH_HDF5)");
+#endif
+  }
   if (options.start_paused) rc.apply("pause", "{}");
   const std::string run_id = options.run_id.empty() ? default_run_id(scene.name) : options.run_id;
+#ifdef FIBERFEM_HAVE_ARCHIVE
+  std::unique_ptr<archive::ArchiveWriter> recorder;  // while recording
+  std::string recording_path;
+  std::vector<double> rec_ms;  // recording time of each frame in the status period, ms
+  io::ArchiveSettings recording_settings;  // of the first file of the current series
+  int recording_part = 1;
+#endif
   std::unique_ptr<RunEndpoints> bus;
   try {
     bus = std::make_unique<RunEndpoints>(run_id);
@@ -173,6 +203,14 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     st.heart_rate_bpm = rc.heart_rate_bpm();
     st.peak_tension_pa = rc.peak_tension_pa();
     st.dt_s = sim.settings().dt_s;
+#ifdef FIBERFEM_HAVE_ARCHIVE
+    if (recorder) {
+      st.recording = recording_path;
+      st.recorded_frames = static_cast<unsigned long>(recorder->frames());
+      st.record_ms = median(rec_ms);
+    }
+    rec_ms.clear();
+#endif
     bus->publish_status(st);
     if (options.status_line) {
       std::fprintf(stderr, "\r%-8s t=%8.3f s  frame %7ld  %6.1f steps/s  x%.2f real time  step %.2f ms  iters %3d  v%u   ",
@@ -185,15 +223,113 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     sim_t_period = sim.time_s();
     t_period = now;
   };
+  // Recording (docs/archive.md): from the start, or by start_recording / stop_recording.
+#ifdef FIBERFEM_HAVE_ARCHIVE
+  auto record = [&](const core::StepReport& r) {
+    const auto t0 = Clock::now();
+    std::vector<std::pair<std::string, double>> cav;
+    for (const io::CavityMeasure& c : scene.cavities) cav.emplace_back(c.name, core::cavity_volume(c.surface, rc.simulator().positions()));
+    recorder->record_frame(rc.simulator(), r, {cav});
+    rec_ms.push_back(seconds_between(t0, Clock::now()) * 1e3);
+  };
+  auto start_recording = [&](const io::ArchiveSettings& a) {
+    archive::ArchiveOptions ao;
+    ao.path = a.path;
+    ao.flush_frames = a.flush_frames;
+    ao.flush_seconds = a.flush_seconds;
+    ao.every_steps = a.every_steps;
+    ao.velocities = a.velocities;
+    ao.displacement = a.displacement;
+    ao.checkpoint_every_s = a.checkpoint_every_s;
+    ao.compression = a.compression;
+    ao.validate();
+    const io::Scene running = rc.parameter_version() == 0 ? scene : rc.running_scene();
+    recorder = std::make_unique<archive::ArchiveWriter>(ao, running, rc.simulator(), options.source + " (served as " + run_id + ")");
+    recorder->set_parameter_state(rc.parameter_state_json());
+    recorder->checkpoint(rc.simulator(), rc.parameter_state_json());
+    core::StepReport initial;
+    initial.time_s = rc.simulator().time_s();
+    record(initial);
+    recording_path = a.path;
+  };
+  auto start_series = [&](const io::ArchiveSettings& a) {
+    recording_settings = a;
+    recording_part = 1;
+    start_recording(a);
+  };
+  auto stop_recording = [&] {
+    recorder->checkpoint(rc.simulator(), rc.parameter_state_json());
+    const long frames = recorder->frames();
+    recorder->close();
+    recorder.reset();
+    out << "fiberfem serve: recorded " << frames << " frames to " << recording_path << "\n" << std::flush;
+    const std::string done = recording_path;
+    recording_path.clear();
+    return std::make_pair(done, frames);
+  };
+  if (options.archive.enabled) start_series(options.archive);
+#endif
   publish_status("starting");
+
+  // start_recording {path, flush_frames, flush_seconds, every, velocities, checkpoint_every,
+  // compression} and stop_recording {} (docs/commands.md): the keys of the scene's archive.
+  auto recording_command = [&](const std::string& kind, const std::string& args) -> CommandResult {
+#ifdef FIBERFEM_HAVE_ARCHIVE
+    try {
+      if (kind == "stop_recording") {
+        if (!recorder) return {false, "not recording"};
+        if (!args.empty() && args.find_first_not_of(" {}\n\t") != std::string::npos) return {false, "stop_recording takes no arguments"};
+        const auto [path, frames] = stop_recording();
+        return {true, "recorded " + std::to_string(frames) + " frames to " + path};
+      }
+      if (recorder) return {false, "already recording to " + recording_path + " (stop_recording first)"};
+      const io::ArchiveSettings a = io::parse_archive_settings(args.empty() ? "{}" : args, "start_recording");
+      start_series(a);
+      return {true, "recording to " + a.path};
+    } catch (const std::exception& e) {
+      recorder.reset();
+      recording_path.clear();
+      return {false, e.what()};
+    }
+#else
+    (void)kind, (void)args;
+    return {false, "this fiberfem was built without HDF5 (FIBERFEM_WITH_HDF5): no recording"};
+#endif
+  };
 
   std::string stop_reason = "shut down by command";
   for (;;) {
     // 1. Commands, at the step boundary.
     const int handled = bus->handle_commands(
-        [&](const std::string& kind, const std::string& args) {
-          const CommandResult r = rc.apply(kind, args);
+        [&](const std::string& kind, const std::string& args, const std::string& id) {
+          CommandResult r;
+          const long step = rc.simulator().step_count();
+          const double time = rc.simulator().time_s();
+          if (kind == "start_recording" || kind == "stop_recording") {
+            r = recording_command(kind, args);
+          } else {
+            r = rc.apply(kind, args);
+          }
           if (!r.accepted) last_message = "rejected " + kind + ": " + r.reason;
+#ifdef FIBERFEM_HAVE_ARCHIVE
+          if (recorder) {  // every command, with the step it took effect at and its ack
+            recorder->record_command({step, time, id, kind, args, r.accepted, r.accepted ? "" : r.reason});
+            if (r.accepted) recorder->set_parameter_state(rc.parameter_state_json());
+            // An archive's frames run forward in time: a restore or reset ends it and
+            // recording goes on in the next file (RUN-2.h5, RUN-3.h5, ...).
+            if (r.accepted && (kind == "restore" || kind == "reset")) {
+              io::ArchiveSettings next = recording_settings;
+              const std::string base = next.path.size() > 3 && next.path.substr(next.path.size() - 3) == ".h5"
+                                           ? next.path.substr(0, next.path.size() - 3) : next.path;
+              next.path = base + "-" + std::to_string(++recording_part) + ".h5";
+              stop_recording();
+              start_recording(next);
+              r.reason += "; recording continues in " + next.path;
+            }
+          }
+#else
+          (void)step, (void)time, (void)id;
+#endif
           return CommandReply{r.accepted, r.reason};
         },
         [&] { return std::make_pair(static_cast<unsigned long>(rc.simulator().step_count()), rc.parameter_version()); });
@@ -217,6 +353,9 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     if (rc.take_step_permission()) {
       rc.before_step();
       last = rc.simulator().step();
+#ifdef FIBERFEM_HAVE_ARCHIVE
+      if (recorder) record(last);
+#endif
       stepped = true;
       ++steps_in_period;
       step_ms.push_back(last.time.total_s * 1e3);
@@ -257,6 +396,9 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
       }
     }
   }
+#ifdef FIBERFEM_HAVE_ARCHIVE
+  if (recorder) stop_recording();
+#endif
   publish_state();
   publish_status("stopped");
   if (options.status_line) std::fprintf(stderr, "\n");

@@ -5,6 +5,7 @@
 
 #include "io/scene.hpp"
 
+#include <cmath>
 #include <iosfwd>
 #include <string>
 
@@ -21,6 +22,12 @@ struct ServeOptions {
   bool surface_only = false;  ///< States carry the boundary nodes only (topology.state_nodes).
   bool start_paused = false;  ///< Start paused (step or resume by command).
   bool status_line = false;   ///< Redraw one status line on stderr (a terminal).
+  /// Record from the start (the scene's `archive` key or --archive); start_recording
+  /// and stop_recording commands control it while running (docs/archive.md).
+  io::ArchiveSettings archive;
+  std::string resume_path;    ///< Start from a checkpoint of this archive (--resume RUN.h5[@t]).
+  double resume_time_s = HUGE_VAL;  ///< The last checkpoint at or before this time; inf: the last.
+  const io::EmbeddedFiles* files = nullptr;  ///< In-memory files of a built-in scene.
   /// @throws std::invalid_argument naming the field.
   void validate() const;
 };

@@ -116,10 +116,10 @@ struct WriterFile {
   h5::Dataset cp_step, cp_time, cp_header_end, cp_header, cp_data_end, cp_data;
   int nn = 0, ne = 0;
   std::vector<io::Probe> probe_list;
-  const core::TetMesh* mesh = nullptr;  // the simulator's (valid while it lives)
   long frames = 0, since_flush = 0;
   std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
   double next_checkpoint_s = 0;
+  std::string parameter_state = "{}";  // for the periodic checkpoints (set_parameter_state)
   long last_checkpoint_step = -1;
   std::vector<float> fbuf;
   bool closed = false;
@@ -137,7 +137,6 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
   const core::TetMesh& mesh = m.mesh;
   w.nn = mesh.num_nodes();
   w.ne = mesh.num_elements();
-  w.mesh = &mesh;
   w.probe_list = scene.probes;
   const hsize_t N = static_cast<hsize_t>(w.nn), E = static_cast<hsize_t>(w.ne);
   w.file = h5::File::create(w.o.path);
@@ -345,7 +344,7 @@ void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepRep
   std::vector<double> probe;
   const core::Positions x_now = sim.positions();
   for (const io::Probe& p : w.probe_list) {
-    const core::Vec3 u = p.displacement(*w.mesh, x_now);
+    const core::Vec3 u = p.displacement(sim.model().mesh, x_now);
     probe.insert(probe.end(), u.data(), u.data() + 3);
   }
   w.probes.append(probe.data(), 1);
@@ -363,7 +362,7 @@ void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepRep
   ++w.frames;
   ++w.since_flush;
   if (w.o.checkpoint_every_s > 0 && sim.time_s() >= w.next_checkpoint_s - 1e-9) {
-    checkpoint(sim, "{}");
+    checkpoint(sim, w.parameter_state);
     while (w.next_checkpoint_s <= sim.time_s() + 1e-9) w.next_checkpoint_s += w.o.checkpoint_every_s;
   }
   const double since_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - w.last_flush).count();
@@ -391,6 +390,8 @@ void ArchiveWriter::record_command(const CommandRecord& c) {
   w.cmd_accepted.append(&acc, 1);
   w.cmd_step.append(&step, 1);  // last: the record is complete
 }
+
+void ArchiveWriter::set_parameter_state(std::string parameter_state_json) { f_->parameter_state = std::move(parameter_state_json); }
 
 void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& parameter_state_json) {
   detail::WriterFile& w = *f_;
@@ -426,6 +427,7 @@ void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& pa
       {"rotations_current", c.rotations_current},
       {"inverted_current", c.inverted_current},
       {"energy_floor_j", c.energy_floor_j},
+      {"contraction_origin_s", c.contraction_origin_s},
       {"solver",
        {{"name", c.solver.solver_name},
         {"history_rows", c.solver.history_rows},
@@ -703,6 +705,7 @@ core::SimulatorCheckpoint ArchiveReader::read_checkpoint(size_t k, std::string* 
   c.rotations_current = h.at("rotations_current");
   c.inverted_current = h.at("inverted_current");
   c.energy_floor_j = h.at("energy_floor_j");
+  c.contraction_origin_s = h.value("contraction_origin_s", 0.0);
   c.x = vector_of(section(h, data, "x"));
   c.v = vector_of(section(h, data, "v"));
   c.vfree = vector_of(section(h, data, "vfree"));

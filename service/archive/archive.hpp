@@ -88,6 +88,9 @@ class ArchiveWriter {
   /// Writes a resumable checkpoint of `sim` now; `parameter_state_json` is kept opaque
   /// (the service stores the applied parameter commands; batch runs pass "{}").
   void checkpoint(const core::Simulator& sim, const std::string& parameter_state_json);
+  /// The parameter state the periodic checkpoints of record_frame carry (default "{}";
+  /// the service sets its running scene and forces after every accepted command).
+  void set_parameter_state(std::string parameter_state_json);
   /// Makes everything recorded so far durable against a crash of this process.
   void flush();
   /// Frames recorded so far.

@@ -163,6 +163,29 @@ TEST(RunControl, PauseStepResumeAndTimeStep) {
   EXPECT_TRUE(rc.shutdown_requested());
 }
 
+// checkpoint / restore: the restored run continues bit-for-bit as it did after the
+// checkpoint, also when parameters changed in between (the saved ones come back).
+TEST(RunControl, RestoreContinuesBitForBitWithTheSavedParameters) {
+  RunControl rc(beam());
+  run(rc, 10);
+  ASSERT_TRUE(rc.apply("apply_force", R"({"name": "p", "target": {"node_set": "xmax"}, "force": [0, 0, 1e-3]})").accepted);
+  ASSERT_TRUE(rc.apply("checkpoint", R"({"name": "a"})").accepted);
+  const core::Positions after = run(rc, 15);
+  ASSERT_TRUE(rc.apply("set_time_step", R"({"dt": 0.004})").accepted);
+  ASSERT_TRUE(rc.apply("clear_force", "{}").accepted);
+  ASSERT_TRUE(rc.apply("set_material", R"({"E_L": 90e3})").accepted);
+  run(rc, 3);
+  const CommandResult r = rc.apply("restore", R"({"name": "a"})");
+  ASSERT_TRUE(r.accepted) << r.reason;
+  EXPECT_EQ(rc.simulator().settings().dt_s, 0.01);
+  EXPECT_EQ(rc.forces().count("p"), 1u);
+  const core::Positions again = run(rc, 15);
+  EXPECT_EQ((again - after).cwiseAbs().maxCoeff(), 0.0);
+  const CommandResult missing = rc.apply("restore", R"({"name": "b"})");
+  EXPECT_FALSE(missing.accepted);
+  EXPECT_NE(missing.reason.find("saved: a"), std::string::npos) << missing.reason;
+}
+
 // A heart-rate change keeps the beat under way (no jump in the tension) and the beats
 // after it come at the new period.
 TEST(RunControl, HeartRateChangeKeepsThePhaseAndSetsTheNewPeriod) {

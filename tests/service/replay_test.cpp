@@ -1,0 +1,133 @@
+// Recording a served run and replaying it (service/replay.hpp) with real processes on
+// loopback: the replay republishes the archive's frames on the live topics, seekable and
+// steppable, and clients see a live-looking run with the replay flag.
+
+#include "clients/ctl/client.hpp"
+#include "process_support.hpp"
+#include "service/archive/archive.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <thread>
+
+namespace fiberfem::testing {
+namespace {
+
+using namespace std::chrono_literals;
+using clients::Client;
+
+class Replay : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { setenv("CYCLONEDDS_URI", FIBERFEM_DDS_URI, 1); }
+  static std::string unique(const std::string& name) { return name + "-" + std::to_string(getpid()); }
+  TempDir dir_;
+};
+
+TEST_F(Replay, ServedRunIsRecordedAndReplayedFrameForFrame) {
+  // 1. Serve and record 1.5 s of the cantilever, with one command on the way.
+  const std::string run = unique("rec");
+  const std::string h5 = dir_.file("run.h5");
+  {
+    BackgroundProcess service({FIBERFEM_BIN, "serve", "--builtin", "cantilever", "--run-id", run, "--until", "1.5", "--archive", h5,
+                               "--flush-frames", "5"},
+                              dir_.file("serve.log"));
+    Client client;
+    ASSERT_EQ(client.resolve_run(run, 20s), run) << service.output();
+    ASSERT_TRUE(client.send(run, "set_gravity", R"({"gravity": [0, 0, -20]})").accepted);
+    ASSERT_FALSE(client.send(run, "set_time_step", R"({"dt": -1})").accepted);
+    ASSERT_EQ(service.wait(60), 0) << service.output();
+  }
+  const archive::ArchiveReader archive(h5);
+  ASSERT_EQ(archive.frames(), 91);  // the rest state and 90 steps
+  const auto commands = archive.commands();
+  ASSERT_EQ(commands.size(), 2u);
+  EXPECT_EQ(commands[0].kind, "set_gravity");
+  EXPECT_TRUE(commands[0].accepted);
+  EXPECT_FALSE(commands[1].accepted);
+  EXPECT_NE(commands[1].reason.find("'dt'"), std::string::npos);
+
+  // 2. Replay it, paused: frame by frame, seek, then play to the end.
+  const std::string rrun = unique("replay");
+  BackgroundProcess replay({FIBERFEM_BIN, "replay", h5, "--run-id", rrun, "--paused", "--rate", "2"}, dir_.file("replay.log"));
+  Client client;
+  ASSERT_EQ(client.resolve_run(rrun, 20s), rrun) << replay.output();
+  const auto st = client.status(rrun, 5s);
+  ASSERT_TRUE(st);
+  EXPECT_TRUE(st->replay);
+  EXPECT_EQ(st->mode, "replay");
+  const auto topo = client.topology(rrun, 10s);
+  ASSERT_TRUE(topo);
+  EXPECT_TRUE(topo->replay);
+  ASSERT_EQ(topo->num_nodes, static_cast<unsigned>(archive.header().rest_positions.cols()));
+  EXPECT_EQ(topo->region_names, std::vector<std::string>{"tissue"});
+
+  auto expect_frame = [&](const clients::State& s, long i) {
+    const archive::Frame f = archive.frame(i);
+    EXPECT_EQ(static_cast<long>(s.frame), f.step);
+    EXPECT_DOUBLE_EQ(s.time_s, f.time_s);
+    ASSERT_EQ(s.positions.size(), static_cast<size_t>(f.positions.size()));
+    for (Eigen::Index k = 0; k < f.positions.size(); ++k) ASSERT_EQ(s.positions[static_cast<size_t>(k)], static_cast<float>(f.positions.data()[k]));
+  };
+  const auto s0 = client.next_state(rrun, 5s);
+  ASSERT_TRUE(s0);
+  expect_frame(*s0, 0);
+  ASSERT_TRUE(client.send(rrun, "step", R"({"count": 3})").accepted);
+  std::optional<clients::State> s3;
+  for (int i = 0; i < 10 && (!s3 || s3->frame < 3); ++i) s3 = client.next_state(rrun, 5s, s3 ? static_cast<long>(s3->frame) : 0);
+  ASSERT_TRUE(s3);
+  expect_frame(*s3, 3);
+  const clients::Ack seek = client.send(rrun, "seek", R"({"time": 1.01})");
+  ASSERT_TRUE(seek.accepted) << seek.reason;
+  const auto s60 = client.next_state(rrun, 5s, 3);
+  ASSERT_TRUE(s60);
+  expect_frame(*s60, 60);  // the last frame at or before 1.01 s: step 60 (t = 60 x 0.0166667 s)
+  EXPECT_FALSE(client.send(rrun, "seek", R"({"frame": 5000})").accepted);
+  EXPECT_FALSE(client.send(rrun, "set_gravity", R"({"gravity": [0, 0, 0]})").accepted);  // not a replay command
+
+  // Playing at x2: frames arrive in order up to the last one.
+  ASSERT_TRUE(client.send(rrun, "resume", "{}").accepted);
+  long last = 60;
+  for (int i = 0; i < 200 && last < 90; ++i) {
+    const auto s = client.next_state(rrun, 5s, last);
+    ASSERT_TRUE(s);
+    EXPECT_GT(static_cast<long>(s->frame), last);
+    last = static_cast<long>(s->frame);
+  }
+  EXPECT_EQ(last, 90);
+  ASSERT_TRUE(client.send(rrun, "shutdown", "{}").accepted);
+  EXPECT_EQ(replay.wait(20), 0) << replay.output();
+}
+
+TEST_F(Replay, RecordingStartsAndStopsByCommandAndARestoreStartsTheNextFile) {
+  const std::string run = unique("startstop");
+  BackgroundProcess service({FIBERFEM_BIN, "serve", "--builtin", "cantilever", "--run-id", run}, dir_.file("serve.log"));
+  Client client;
+  ASSERT_EQ(client.resolve_run(run, 20s), run) << service.output();
+  const std::string h5 = dir_.file("live.h5");
+  EXPECT_FALSE(client.send(run, "stop_recording", "{}").accepted);
+  const clients::Ack bad = client.send(run, "start_recording", R"({"path": ")" + h5 + R"(", "flush_frames": 0})");
+  EXPECT_FALSE(bad.accepted);
+  EXPECT_NE(bad.reason.find("flush_frames"), std::string::npos) << bad.reason;
+  ASSERT_TRUE(client.send(run, "checkpoint", "{}").accepted);
+  ASSERT_TRUE(client.send(run, "start_recording", R"({"path": ")" + h5 + R"("})").accepted);
+  std::this_thread::sleep_for(500ms);
+  const clients::Ack restored = client.send(run, "restore", "{}");
+  ASSERT_TRUE(restored.accepted) << restored.reason;
+  EXPECT_NE(restored.reason.find("live-2.h5"), std::string::npos) << restored.reason;
+  std::this_thread::sleep_for(300ms);
+  const clients::Ack stopped = client.send(run, "stop_recording", "{}");
+  ASSERT_TRUE(stopped.accepted) << stopped.reason;
+  const archive::ArchiveReader first(h5), second(dir_.file("live-2.h5"));
+  EXPECT_GT(first.frames(), 5);
+  EXPECT_GT(second.frames(), 3);
+  const auto t1 = first.times(), t2 = second.times();
+  for (size_t i = 1; i < t1.size(); ++i) EXPECT_GT(t1[i], t1[i - 1]);
+  for (size_t i = 1; i < t2.size(); ++i) EXPECT_GT(t2[i], t2[i - 1]);
+  EXPECT_LT(t2.front(), t1.back());  // the second file starts back at the checkpoint
+}
+
+}  // namespace
+}  // namespace fiberfem::testing
