@@ -129,5 +129,38 @@ TEST_F(Replay, RecordingStartsAndStopsByCommandAndARestoreStartsTheNextFile) {
   EXPECT_LT(t2.front(), t1.back());  // the second file starts back at the checkpoint
 }
 
+// A served run resumed from its archive's checkpoint (with a command applied before it)
+// continues bit-for-bit like the uninterrupted run.
+TEST_F(Replay, ServeResumesFromACheckpointBitForBit) {
+  const std::string run = unique("whole");
+  const std::string whole = dir_.file("whole.h5"), tail = dir_.file("tail.h5");
+  {
+    BackgroundProcess service({FIBERFEM_BIN, "serve", "--builtin", "cantilever", "--run-id", run, "--fast", "--paused", "--until", "2",
+                               "--archive", whole},
+                              dir_.file("whole.log"));
+    Client client;
+    ASSERT_EQ(client.resolve_run(run, 20s), run) << service.output();
+    ASSERT_TRUE(client.send(run, "set_gravity", R"({"gravity": [0, 0, -20]})").accepted);
+    ASSERT_TRUE(client.send(run, "apply_force", R"({"target": {"node_set": "xmax"}, "force": [0, 0.001, 0]})").accepted);
+    ASSERT_TRUE(client.send(run, "resume", "{}").accepted);
+    ASSERT_EQ(service.wait(60), 0) << service.output();
+  }
+  {
+    const std::string run2 = unique("tail");
+    BackgroundProcess service({FIBERFEM_BIN, "serve", "--builtin", "cantilever", "--run-id", run2, "--fast", "--until", "2", "--resume",
+                               whole + "@1.2", "--archive", tail},
+                              dir_.file("tail.log"));
+    ASSERT_EQ(service.wait(60), 0) << service.output();
+    EXPECT_NE(service.output().find("resumed from"), std::string::npos) << service.output();
+  }
+  const archive::ArchiveReader a(whole), b(tail);
+  ASSERT_EQ(a.steps().back(), 120);
+  ASSERT_EQ(b.steps().back(), 120);
+  EXPECT_EQ(b.steps().front(), 60);  // the checkpoint at 1 s
+  const archive::Frame fa = a.frame(a.frames() - 1), fb = b.frame(b.frames() - 1);
+  EXPECT_EQ((fa.positions - fb.positions).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT((fa.positions - a.header().rest_positions).cwiseAbs().maxCoeff(), 1e-3);  // it moved
+}
+
 }  // namespace
 }  // namespace fiberfem::testing
