@@ -12,4 +12,8 @@ namespace fiberfem::service {
 /// `fiberfem run`: a scene in batch, without the bus (cmd_run.cpp).
 void add_run_command(CLI::App& app, int& exit_code);
 
+/// `fiberfem render`: simulate a scene and render it off-screen (cmd_render.cpp); built
+/// when FIBERFEM_WITH_OSMESA is on (compile definition FIBERFEM_HAVE_RENDER).
+void add_render_command(CLI::App& app, int& exit_code);
+
 }  // namespace fiberfem::service

@@ -1,5 +1,6 @@
 // The `fiberfem` command: one subcommand per job (service/commands.hpp), each in its own
-// file. `fiberfem run SCENE.yaml` runs a scene in batch (docs/options.md).
+// file. `fiberfem run SCENE.yaml` runs a scene in batch (docs/options.md); `fiberfem render`
+// draws one off-screen (docs/rendering.md).
 
 #include "service/commands.hpp"
 
@@ -10,6 +11,9 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int exit_code = 0;
   fiberfem::service::add_run_command(app, exit_code);
+#ifdef FIBERFEM_HAVE_RENDER
+  fiberfem::service::add_render_command(app, exit_code);
+#endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }
