@@ -15,7 +15,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev libpng-dev libssl-dev nlohmann-json3-dev
   cyclonedds-dev cyclonedds-tools libhdf5-dev hdf5-tools
-  libosmesa6-dev ffmpeg
+  libosmesa6-dev ffmpeg libfreetype-dev fonts-dejavu-core
   python3 python3-venv time
   # the gmsh wheel's runtime libraries (scripts/make_*.py regenerate the shipped meshes)
   libglu1-mesa libxcursor1 libxft2 libxinerama1 libgl1 libfontconfig1

@@ -8,8 +8,8 @@ namespace fiberfem::render {
 
 /// Viridis at t in [0, 1] (clamped; NaN gives grey), read from a 256-entry table.
 /// The table samples a degree-6 polynomial fit of matplotlib's viridis (van der Walt and
-/// Smith), published by "mattz" (shadertoy WlfXRN); tests/render/colormap_test.cpp
-/// checks it against matplotlib's own values at 0, 1/2 and 1.
+/// Smith), published by "mattz" (shadertoy WlfXRN): within 6/255 per channel of
+/// matplotlib's values at 0, 1/4, 1/2, 3/4 and 1 (tests/render/image_io_test.cpp).
 Rgba viridis(double t);
 
 /// A categorical colour for region id `k` (Tableau 10, repeating after 10 ids; k >= 0).

@@ -219,9 +219,10 @@ struct Renderer::Impl {
         const core::Tri& tri = tris[static_cast<size_t>(t)];
         const core::Vec3 a = f.x.col(tri[0]), b = f.x.col(tri[1]), c = f.x.col(tri[2]);
         const core::Vec3 n = (b - a).cross(c - a).normalized();
-        core::Vec3 d = dir[static_cast<size_t>(tse[static_cast<size_t>(t)])];
-        const core::Vec3 dt = d - d.dot(n) * n;
-        if (dt.norm() > 0.2) d = dt.normalized();
+        const core::Vec3 d0 = dir[static_cast<size_t>(tse[static_cast<size_t>(t)])];
+        const core::Vec3 dt = d0 - d0.dot(n) * n;
+        if (dt.norm() < 0.5) continue;  // the fiber crosses this face (more than 60 deg from its plane)
+        const core::Vec3 d = dt.normalized();
         const core::Vec3 m = (a + b + c) / 3.0 + 0.03 * surface.mean_edge_m() * n;
         for (const core::Vec3& p : {core::Vec3(m - 0.5 * len * d), core::Vec3(m + 0.5 * len * d)})
           for (int k = 0; k < 3; ++k) glyphs.push_back(static_cast<float>(p[k]));
@@ -280,7 +281,6 @@ struct Renderer::Impl {
     if (!glyphs.empty()) {
       glColor3ub(25, 25, 25);
       glLineWidth(1.4f * static_cast<float>(settings.supersample));
-      glEnable(GL_LINE_SMOOTH);
       glVertexPointer(3, GL_FLOAT, 0, glyphs.data());
       glDrawArrays(GL_LINES, 0, static_cast<GLsizei>(glyphs.size() / 3));
     }

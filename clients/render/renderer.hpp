@@ -24,8 +24,8 @@ struct RenderSettings {
   /// holding every frame drawn so far (it only grows, so a movie does not flicker).
   std::optional<std::pair<double, double>> range;
   bool fibers = false;               ///< Fiber glyphs on the surface elements. Default off.
-  /// Glyph length as a multiple of the mean surface edge length, in (0, 10]. Default 0.8.
-  double fiber_length = 0.8;
+  /// Glyph length as a multiple of the mean surface edge length, in (0, 10]. Default 0.6.
+  double fiber_length = 0.6;
   /// Supersampling factor per side (anti-aliasing: drawn at k times the size, then
   /// averaged down), in [1, 4]; costs about k^2. Default 1.
   int supersample = 1;

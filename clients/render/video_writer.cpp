@@ -47,6 +47,11 @@ VideoWriter::VideoWriter(VideoSettings settings) : settings_(std::move(settings)
   if (!find_program(settings_.ffmpeg))
     throw std::runtime_error("cannot write " + settings_.path + ": '" + settings_.ffmpeg +
                              "' not found on PATH (install ffmpeg, or leave out --mp4)");
+  if (FILE* f = std::fopen(settings_.path.c_str(), "wb")) {
+    std::fclose(f);
+  } else {
+    throw std::runtime_error("cannot write " + settings_.path + ": " + std::strerror(errno));
+  }
   // A write to a pipe whose reader has died raises SIGPIPE, which would kill the whole
   // process; ignored, the write returns EPIPE and we report ffmpeg's log instead.
   std::signal(SIGPIPE, SIG_IGN);
