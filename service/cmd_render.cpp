@@ -6,6 +6,7 @@
 #include "clients/render/renderer.hpp"
 #include "clients/render/surface.hpp"
 #include "clients/render/video_writer.hpp"
+#include "core/static_solver.hpp"
 #include "io/scene.hpp"
 #include "service/commands.hpp"
 
@@ -29,12 +30,12 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 struct RenderArgs {
-  std::string scene_file, out_dir, field, camera = "iso", mp4, strip;
-  std::vector<double> eye, target, up, range;
+  std::string scene_file, out_dir, field, camera = "iso", fit = "rest", mp4, strip;
+  std::vector<double> eye, target, up, range, at;
   double fov = 30, until = 0, fps = 0, margin = 0.1;
   int width = 1280, height = 720, every = 1, steps = 0, png_level = 1, supersample = 1, strip_panels = 8, strip_width = 240;
   std::vector<std::string> overrides;
-  bool fibers = false, no_png = false, time = false, no_overlay = false;
+  bool fibers = false, no_png = false, time = false, no_overlay = false, force_static = false, last = false, flat = false;
 };
 
 double median(std::vector<double> v) {
@@ -47,8 +48,8 @@ double median(std::vector<double> v) {
 core::Vec3 vec3(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
 
 // The camera: a preset framing the rest shape, then any explicit key on top.
-render::Camera make_camera(const RenderArgs& a, const core::TetMesh& mesh, CLI::App& cmd) {
-  render::Camera cam = render::frame_points(render::parse_camera_preset(a.camera), render::surface_points(mesh),
+render::Camera make_camera(const RenderArgs& a, const core::Positions& points, CLI::App& cmd) {
+  render::Camera cam = render::frame_points(render::parse_camera_preset(a.camera), points,
                                             static_cast<double>(a.width) / a.height, a.fov, a.margin);
   if (!a.target.empty()) {
     const core::Vec3 shift = vec3(a.target) - cam.target;
@@ -61,14 +62,15 @@ render::Camera make_camera(const RenderArgs& a, const core::TetMesh& mesh, CLI::
   return cam;
 }
 
+// "heart    t = 0.100 s    beat 1    60 fps": the frame rate only for a sequence (every
+// K-th step; the MP4's rate), not for single frames picked with --at or --last.
 std::string caption_of(const io::Scene& sc, double t, double fps) {
   char buf[256];
   const core::Contraction& c = sc.model.contraction;
+  int n = std::snprintf(buf, sizeof buf, "%s    t = %.3f s", sc.name.c_str(), t);
   if (c.enabled())
-    std::snprintf(buf, sizeof buf, "%s    t = %.3f s    beat %ld    %.3g fps", sc.name.c_str(), t,
-                  static_cast<long>(std::floor(t / c.period_s + 1e-9)) + 1, fps);
-  else
-    std::snprintf(buf, sizeof buf, "%s    t = %.3f s    %.3g fps", sc.name.c_str(), t, fps);
+    n += std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n), "    beat %ld", static_cast<long>(std::floor(t / c.period_s + 1e-9)) + 1);
+  if (fps > 0) std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n), "    %.3g fps", fps);
   return buf;
 }
 
@@ -80,16 +82,22 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     io::Scene sc = io::load_scene(a.scene_file, a.overrides);
     const core::Model& model = sc.model;
     const bool contracting = model.contraction.enabled();
+    const bool is_static = a.force_static || sc.mode == io::Mode::static_;
+    if (is_static && !a.strip.empty()) throw std::invalid_argument("--strip: a static scene has no beat to show");
 
     render::RenderSettings rs;
     rs.width = a.width, rs.height = a.height, rs.supersample = a.supersample, rs.fibers = a.fibers;
     rs.field = a.field.empty() ? (contracting ? render::Field::activation : render::Field::displacement) : render::parse_field(a.field);
     if (!a.range.empty()) rs.range = std::make_pair(a.range[0], a.range[1]);
     rs.colour_bar = rs.caption = !a.no_overlay;
+    rs.smooth = !a.flat;
     rs.validate();
     if (rs.field == render::Field::activation && !contracting)
       throw std::invalid_argument("--field activation: scene '" + sc.name + "' has no contraction (try --field displacement)");
-    const render::Camera camera = make_camera(a, model.mesh, cmd);
+    if (a.fit != "rest" && a.fit != "frame") throw std::invalid_argument("--fit '" + a.fit + "': use rest or frame");
+    const core::Positions rest_surface = render::surface_points(model.mesh);
+    const render::Camera camera = make_camera(a, rest_surface, cmd);
+    const std::vector<int> surface_nodes = model.mesh.boundary_nodes();
 
     if (!a.out_dir.empty() && !a.no_png) {
       std::error_code ec;
@@ -99,7 +107,11 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     }
 
     const double dt = sc.settings.dt_s;
-    const double until = a.until > 0 ? a.until : sc.until_s;
+    std::vector<double> at = a.at;  // --at: render only the steps nearest these times
+    std::sort(at.begin(), at.end());
+    const double until = a.until > 0 ? a.until : !at.empty() ? std::max(at.back(), dt) : sc.until_s;
+    if (!at.empty() && at.back() > until + 0.5 * dt)
+      throw std::invalid_argument("--at " + std::to_string(at.back()) + " s is after the end of the run (" + std::to_string(until) + " s)");
     const long steps = a.steps > 0 ? a.steps : std::max(1L, std::lround(until / dt));
     if (steps > 100000000L) throw std::invalid_argument("render: over 1e8 steps");
     const double fps = a.fps > 0 ? a.fps : std::clamp(1.0 / (a.every * dt), 1.0, 240.0);
@@ -130,30 +142,24 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     const bool tty = isatty(fileno(stderr)) != 0;
     std::vector<double> t_step, t_prepare, t_draw, t_read, t_overlay, t_png, t_pipe, t_total;
     long frames = 0;
-    const long total_frames = steps / a.every + 1;
+    if (a.last && !at.empty()) throw std::invalid_argument("--last and --at exclude each other");
+    const long total_frames = a.last ? 1 : is_static ? 2 : !at.empty() ? static_cast<long>(at.size()) : steps / a.every + 1;
+    size_t next_at = 0;
     std::vector<double> activation;
     const auto t_run = Clock::now();
-    for (long s = 0; s <= steps; ++s) {
-      if (s > 0) {
-        const auto t0 = Clock::now();
-        const core::StepReport r = sim.step();
-        t_step.push_back(since(t0));
-        if (r.status == core::StepStatus::failed)
-          throw std::runtime_error("step " + std::to_string(s) + " failed at t = " + std::to_string(sim.time_s()) + " s: " + r.message);
-      }
-      if (contracting) activation = render::activation_from_tension(model.contraction, model.mesh.regions(), sim.active_tension());
-      const double t = sim.time_s();
-      if (!a.strip.empty() && next_panel < a.strip_panels && t + 0.5 * dt >= next_panel * strip_span / a.strip_panels) {
-        panels.push_back({sim.positions(), activation, t});
-        ++next_panel;
-      }
-      if (s % a.every != 0 || (a.no_png && !video)) continue;
-      render::FrameView frame(model.mesh, sim.positions());
+    // Draws one state into the outputs.
+    auto emit = [&](const Eigen::Ref<const core::Positions>& x, double t) {
+      render::FrameView frame(model.mesh, x);
       frame.activation = contracting ? &activation : nullptr;
       frame.fibers = &model.fibers;
       frame.dm_inv = &sim.caches().Dm_inv;
       frame.time_s = t;
-      frame.caption = caption_of(sc, t, fps);
+      frame.caption = is_static ? sc.name + (t > 0 ? "    static equilibrium" : "    rest") : caption_of(sc, t, at.empty() && !a.last ? fps : 0.0);
+      if (a.fit == "frame") {  // re-frame on the deformed surface
+        core::Positions current(3, static_cast<Eigen::Index>(surface_nodes.size()));
+        for (size_t i = 0; i < surface_nodes.size(); ++i) current.col(static_cast<Eigen::Index>(i)) = x.col(surface_nodes[i]);
+        renderer.set_camera(make_camera(a, current, cmd));
+      }
       const auto t0 = Clock::now();
       const render::Image& image = renderer.render(frame);
       const render::RenderTimes& rt = renderer.last_times();
@@ -180,6 +186,43 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
         std::printf("render: frame %ld/%ld  t = %.3f s\n", frames, total_frames, t);
         std::fflush(stdout);
       }
+    };
+    if (is_static) {
+      // A static scene: the rest state, then the equilibrium (Newton, as fiberfem run --static,
+      // which has no active stress: activation zero).
+      if (contracting) activation.assign(static_cast<size_t>(model.mesh.num_elements()), 0.0);
+      if (!a.last) emit(sim.positions(), 0.0);
+      core::StaticSettings ss;
+      ss.rotation = sc.settings.rotation;
+      ss.corotation = sc.settings.corotation;
+      core::Positions x;
+      const core::StaticReport r = core::solve_static(model, x, ss);
+      if (!r.converged) throw std::runtime_error("static solve did not converge: " + r.message);
+      emit(x, 1.0);
+    }
+    for (long s = 0; !is_static && s <= steps; ++s) {
+      if (s > 0) {
+        const auto t0 = Clock::now();
+        const core::StepReport r = sim.step();
+        t_step.push_back(since(t0));
+        if (r.status == core::StepStatus::failed)
+          throw std::runtime_error("step " + std::to_string(s) + " failed at t = " + std::to_string(sim.time_s()) + " s: " + r.message);
+      }
+      if (contracting) activation = render::activation_from_tension(model.contraction, model.mesh.regions(), sim.active_tension());
+      const double t = sim.time_s();
+      if (!a.strip.empty() && next_panel < a.strip_panels && t + 0.5 * dt >= next_panel * strip_span / a.strip_panels) {
+        panels.push_back({sim.positions(), activation, t});
+        ++next_panel;
+      }
+      if (a.no_png && !video) continue;
+      if (!at.empty()) {
+        bool wanted = false;  // a time may be asked for twice; one frame serves both
+        while (next_at < at.size() && t + 0.5 * dt >= at[next_at]) ++next_at, wanted = true;
+        if (!wanted) continue;
+      } else if (a.last ? s != steps : s % a.every != 0) {
+        continue;
+      }
+      emit(sim.positions(), t);
     }
     if (tty) std::fprintf(stderr, "\n");
     if (video) video->close();
@@ -193,8 +236,7 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
       ps.colour_bar = false;
       ps.supersample = 1;
       render::Renderer strip_renderer(model.mesh, ps);
-      render::Camera pc = camera;
-      strip_renderer.set_camera(pc);
+      strip_renderer.set_camera(renderer.camera());
       std::vector<render::Image> images;
       for (int pass = 0; pass < 2; ++pass)
         for (const Panel& p : panels) {
@@ -243,15 +285,22 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--eye", a->eye, "Eye position x y z, m (overrides the preset's)")->expected(3);
   cmd->add_option("--target", a->target, "Point looked at x y z, m (default: the rest bounding-box centre)")->expected(3);
   cmd->add_option("--up", a->up, "Up direction x y z (default: +z; +y for top)")->expected(3);
+  cmd->add_option("--fit", a->fit, "What the preset frames: rest (the rest surface, fixed camera) or frame (each frame's deformed surface)")
+      ->capture_default_str();
   cmd->add_option("--margin", a->margin, "Framing margin of the presets, relative to the extent, in [0, 2]")
       ->check(CLI::Range(0.0, 2.0))->capture_default_str();
   cmd->add_option("--fov", a->fov, "Vertical field of view, degrees, in (0, 170)")->capture_default_str();
   cmd->add_option("--width", a->width, "Image width, pixels, in [16, 8192]")->capture_default_str();
   cmd->add_option("--height", a->height, "Image height, pixels, in [16, 8192]")->capture_default_str();
   cmd->add_option("--every", a->every, "Render every K-th step (and the initial state)")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--at", a->at, "Render only the steps nearest these times, s (instead of --every; the run lasts to the last)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--last", a->last, "Render only the final state (the end of the run, or the static equilibrium)");
   cmd->add_option("--until", a->until, "Simulated time, s (default: the scene's solver.until)")->check(CLI::PositiveNumber);
   cmd->add_option("--steps", a->steps, "Number of steps (instead of --until)")->check(CLI::PositiveNumber);
   cmd->add_option("--set", a->overrides, "Override a scene key: key.path=value (repeatable, as fiberfem run)");
+  cmd->add_flag("--static", a->force_static, "Solve for static equilibrium and render the rest state and the solution (static scenes do this anyway)");
+  cmd->add_flag("--flat", a->flat, "Colour each triangle by its element's value (activation, fiber_strain) instead of smoothing to the nodes");
   cmd->add_flag("--fibers", a->fibers, "Draw fiber glyphs (F f) on the surface");
   cmd->add_option("--range", a->range, "Fixed colour range MIN MAX in the field's SI unit (displacement in m)")->expected(2);
   cmd->add_option("--mp4", a->mp4, "Also encode the frames into this MP4 (ffmpeg)");

@@ -106,9 +106,30 @@ Camera frame_points(CameraPreset preset, const core::Positions& points, double a
   const core::Vec3 back = dir.from, right = dir.up.cross(back).normalized(), up = back.cross(right);
   const double ty = std::tan(0.5 * fov_deg * kPi / 180), tx = ty * aspect;
   double d = 0;
-  for (Eigen::Index k = 0; k < points.cols(); ++k) {
-    const core::Vec3 rel = (points.col(k) - cam.target) * (1 + margin);
-    d = std::max({d, rel.dot(back) + std::abs(rel.dot(right)) / tx, rel.dot(back) + std::abs(rel.dot(up)) / ty});
+  // Distance for the current target; then the target moves so that the projected extent
+  // is centred in the image (a perspective view of a box is not symmetric about the
+  // projection of its centre), and the distance is found again.
+  auto fit_distance = [&] {
+    d = 0;
+    for (Eigen::Index k = 0; k < points.cols(); ++k) {
+      const core::Vec3 rel = (points.col(k) - cam.target) * (1 + margin);
+      d = std::max({d, rel.dot(back) + std::abs(rel.dot(right)) / tx, rel.dot(back) + std::abs(rel.dot(up)) / ty});
+    }
+  };
+  fit_distance();
+  for (int iteration = 0; iteration < 3 && d > 0; ++iteration) {
+    double x_lo = HUGE_VAL, x_hi = -HUGE_VAL, y_lo = HUGE_VAL, y_hi = -HUGE_VAL;
+    bool in_front = true;
+    for (Eigen::Index k = 0; k < points.cols() && in_front; ++k) {
+      const core::Vec3 rel = points.col(k) - cam.target;
+      const double depth = d - rel.dot(back);
+      in_front = depth > 0;
+      x_lo = std::min(x_lo, rel.dot(right) / depth), x_hi = std::max(x_hi, rel.dot(right) / depth);
+      y_lo = std::min(y_lo, rel.dot(up) / depth), y_hi = std::max(y_hi, rel.dot(up) / depth);
+    }
+    if (!in_front) break;
+    cam.target += 0.5 * d * ((x_lo + x_hi) * right + (y_lo + y_hi) * up);
+    fit_distance();
   }
   cam.eye = cam.target + d * back;
   cam.ortho_height_m = 2 * d * ty;

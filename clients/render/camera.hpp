@@ -38,16 +38,17 @@ const char* to_string(CameraPreset p);
 /// @throws std::invalid_argument naming the text and the accepted names.
 CameraPreset parse_camera_preset(const std::string& text);
 
-/// A camera looking from `preset`'s direction at the centre of the box [lo, hi] from the
-/// distance at which all eight corners fit in an image of `aspect` = width / height with
-/// a relative `margin` (0.08: 8 % of the half-extent to spare).
+/// A camera looking from `preset`'s direction at the box [lo, hi] from the distance at
+/// which all eight corners fit in an image of `aspect` = width / height with a relative
+/// `margin` (0.08: 8 % of the half-extent to spare), their projection centred (frame_points).
 /// @throws std::invalid_argument for an empty box, aspect <= 0 or fov outside (0, 170).
 Camera frame_box(CameraPreset preset, const core::Vec3& lo, const core::Vec3& hi, double aspect, double fov_deg = 30.0,
                  double margin = 0.08);
 
-/// The same for a point cloud (e.g. the rest surface nodes): looks at the centre of the
-/// points' bounding box from the distance at which every point fits (tighter than the
-/// box's corners for rounded shapes seen diagonally).
+/// The same for a point cloud (e.g. the rest surface nodes): looks from the preset's
+/// direction, from the distance at which every point fits (tighter than the box's corners
+/// for rounded shapes seen diagonally), at a target placed so that the points' projected
+/// extent is centred in the image.
 /// @throws std::invalid_argument for fewer than one point, non-finite points, a
 /// zero-size cloud, aspect <= 0 or fov outside (0, 170).
 Camera frame_points(CameraPreset preset, const core::Positions& points, double aspect, double fov_deg = 30.0,

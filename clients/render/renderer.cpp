@@ -106,7 +106,7 @@ struct Renderer::Impl {
   // Per-frame work arrays: one vertex per triangle corner.
   Eigen::Matrix3Xf vertices, normals;
   std::vector<std::uint8_t> colours;
-  std::vector<double> element_values, node_values;
+  std::vector<double> element_values, node_values, node_weights;
   std::vector<float> glyphs;
 
   Impl(const core::TetMesh& m, const RenderSettings& s)
@@ -187,6 +187,19 @@ struct Renderer::Impl {
         }
     }
     if (vmin <= vmax) update_range(vmin, vmax);
+    // Smooth per-element fields: each surface node takes the mean over its triangles.
+    const bool smooth = settings.smooth && (field == Field::activation || field == Field::fiber_strain);
+    if (smooth) {
+      node_values.assign(static_cast<size_t>(mesh.num_nodes()), 0.0);
+      node_weights.assign(static_cast<size_t>(mesh.num_nodes()), 0.0);
+      for (int t = 0; t < T; ++t)
+        for (int v : tris[static_cast<size_t>(t)]) {
+          node_values[static_cast<size_t>(v)] += element_values[static_cast<size_t>(tse[static_cast<size_t>(t)])];
+          node_weights[static_cast<size_t>(v)] += 1;
+        }
+      for (size_t v = 0; v < node_values.size(); ++v)
+        if (node_weights[v] > 0) node_values[v] /= node_weights[v];
+    }
     const double scale = 1.0 / (hi - lo);
     colours.resize(static_cast<size_t>(T) * 12);
     vertices.resize(3, 3 * T);
@@ -197,7 +210,9 @@ struct Renderer::Impl {
         Rgba c = plain_colour();
         switch (field) {
           case Field::activation:
-          case Field::fiber_strain: c = viridis((element_values[static_cast<size_t>(tse[static_cast<size_t>(t)])] - lo) * scale); break;
+          case Field::fiber_strain:
+            c = viridis(((smooth ? node_values[static_cast<size_t>(v)] : element_values[static_cast<size_t>(tse[static_cast<size_t>(t)])]) - lo) * scale);
+            break;
           case Field::displacement: c = viridis((node_values[static_cast<size_t>(v)] - lo) * scale); break;
           case Field::region: c = region_colour(mesh.regions()[static_cast<size_t>(surface.triangle_elements()[static_cast<size_t>(t)])]); break;
           case Field::none: break;

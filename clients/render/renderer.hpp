@@ -23,6 +23,10 @@ struct RenderSettings {
   /// Unset: activation uses [0, 1]; fiber_strain and displacement use the smallest range
   /// holding every frame drawn so far (it only grows, so a movie does not flicker).
   std::optional<std::pair<double, double>> range;
+  /// Per-element fields (activation, fiber_strain) averaged to the surface nodes and
+  /// interpolated across each triangle (smooth colours); false colours each triangle
+  /// with its element's own value (faceted). Default true.
+  bool smooth = true;
   bool fibers = false;               ///< Fiber glyphs on the surface elements. Default off.
   /// Glyph length as a multiple of the mean surface edge length, in (0, 10]. Default 0.6.
   double fiber_length = 0.6;

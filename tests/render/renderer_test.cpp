@@ -272,7 +272,7 @@ TEST(Renderer, MatchesTheReviewedReferenceImage) {
   Renderer r(mesh, s);
   core::Positions both(3, 2 * mesh.num_nodes());
   both << mesh.rest_positions(), x;
-  r.set_camera(frame_points(CameraPreset::iso, both, 240.0 / 160.0));
+  r.set_camera(frame_points(CameraPreset::iso, both, 240.0 / 160.0, 30.0, 0.35));
   FrameView frame(mesh, x);
   frame.fibers = &fibers;
   frame.caption = "reference box";
