@@ -22,12 +22,12 @@ common=(--width 960 --height 540 --supersample 2 --png-level 9)
 # What to show of each scene: the time (or the static equilibrium), the field, the camera.
 declare -A opts=(
   [heart]="--at 0.1 --field activation"
-  [lv-beat]="--at 0.1 --field activation"
+  [lv-beat]="--at 0.15 --field fiber_strain"
   [land-ventricle-p2]="--field displacement --fit frame --camera iso"
   [beam-demo]="--field displacement --fit frame --camera front --fibers"
-  [box-gravity]="--field displacement --fit frame --camera front"
-  [cantilever-across]="--field displacement --fit frame --camera front --fibers"
-  [cantilever-along]="--field displacement --fit frame --camera front --fibers"
+  [box-gravity]="--field displacement --fit frame --camera iso"
+  [cantilever-across]="--field displacement --fit frame --camera iso --fibers"
+  [cantilever-along]="--field displacement --fit frame --camera iso --fibers"
   [demo-cantilever]="--field displacement --fit frame --camera front"
   [land-beam]="--field displacement --fit frame --camera front"
   [palm-drag]="--field displacement --fit frame --camera iso"

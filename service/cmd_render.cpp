@@ -235,6 +235,7 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
       ps.height = std::max(16, static_cast<int>(std::lround(ps.width * static_cast<double>(a.height) / a.width)));
       ps.colour_bar = false;
       ps.supersample = 1;
+      ps.font_px = std::max(9, ps.height / 9);
       render::Renderer strip_renderer(model.mesh, ps);
       strip_renderer.set_camera(renderer.camera());
       std::vector<render::Image> images;

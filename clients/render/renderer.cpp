@@ -31,6 +31,8 @@ void RenderSettings::validate() const {
     throw std::invalid_argument("range: needs finite min < max, got [" + std::to_string(range->first) + ", " +
                                 std::to_string(range->second) + "]");
   if (!(fiber_length > 0 && fiber_length <= 10)) throw std::invalid_argument("fiber_length: must be in (0, 10]");
+  if (max_fiber_glyphs < 1 || max_fiber_glyphs > 10000000) throw std::invalid_argument("max_fiber_glyphs: must be in [1, 1e7]");
+  if (font_px != 0 && (font_px < 4 || font_px > 512)) throw std::invalid_argument("font_px: " + std::to_string(font_px) + " is outside [4, 512] (or 0: automatic)");
 }
 
 namespace {
@@ -108,13 +110,14 @@ struct Renderer::Impl {
   std::vector<std::uint8_t> colours;
   std::vector<double> element_values, node_values, node_weights;
   std::vector<float> glyphs;
+  std::vector<std::uint8_t> glyph_colours;  // RGBA per glyph vertex
 
   Impl(const core::TetMesh& m, const RenderSettings& s)
       : mesh(m),
         settings(s),
         surface(m),
         context(s.width * s.supersample, s.height * s.supersample),
-        font(std::max(9, s.height / 42)) {
+        font(s.font_px > 0 ? s.font_px : std::max(9, s.height / 42)) {
     camera = frame_points(CameraPreset::iso, surface_points(mesh), static_cast<double>(s.width) / s.height);
     program = glCreateProgram();
     glAttachShader(program, compile(GL_VERTEX_SHADER, kVertexShader));
@@ -225,12 +228,14 @@ struct Renderer::Impl {
     // Fiber glyphs: a segment through each surface triangle's centroid along F f, laid
     // into the triangle's plane, lifted off it by a small fraction of an edge.
     glyphs.clear();
+    glyph_colours.clear();
     if (settings.fibers) {
       const double len = settings.fiber_length * surface.mean_edge_m();
       std::vector<core::Vec3> dir(se.size());
       for (size_t i = 0; i < se.size(); ++i) dir[i] = (deformation(f, static_cast<int>(i)) * (*f.fibers)[static_cast<size_t>(se[i])]).normalized();
       glyphs.reserve(static_cast<size_t>(T) * 6);
-      for (int t = 0; t < T; ++t) {
+      const int stride = (T + settings.max_fiber_glyphs - 1) / settings.max_fiber_glyphs;
+      for (int t = 0; t < T; t += stride) {
         const core::Tri& tri = tris[static_cast<size_t>(t)];
         const core::Vec3 a = f.x.col(tri[0]), b = f.x.col(tri[1]), c = f.x.col(tri[2]);
         const core::Vec3 n = (b - a).cross(c - a).normalized();
@@ -241,6 +246,10 @@ struct Renderer::Impl {
         const core::Vec3 m = (a + b + c) / 3.0 + 0.03 * surface.mean_edge_m() * n;
         for (const core::Vec3& p : {core::Vec3(m - 0.5 * len * d), core::Vec3(m + 0.5 * len * d)})
           for (int k = 0; k < 3; ++k) glyphs.push_back(static_cast<float>(p[k]));
+        // Dark glyphs on light colours, light ones on dark colours (luma of the face).
+        const std::uint8_t* face = &colours[static_cast<size_t>(12 * t)];
+        const std::uint8_t g = 0.299 * face[0] + 0.587 * face[1] + 0.114 * face[2] > 110 ? 20 : 235;
+        for (int k = 0; k < 8; ++k) glyph_colours.push_back(k % 4 == 3 ? 255 : g);
       }
     }
   }
@@ -294,10 +303,12 @@ struct Renderer::Impl {
     glDisableClientState(GL_COLOR_ARRAY);
     glUseProgram(0);
     if (!glyphs.empty()) {
-      glColor3ub(25, 25, 25);
       glLineWidth(1.4f * static_cast<float>(settings.supersample));
+      glEnableClientState(GL_COLOR_ARRAY);
       glVertexPointer(3, GL_FLOAT, 0, glyphs.data());
+      glColorPointer(4, GL_UNSIGNED_BYTE, 0, glyph_colours.data());
       glDrawArrays(GL_LINES, 0, static_cast<GLsizei>(glyphs.size() / 3));
+      glDisableClientState(GL_COLOR_ARRAY);
     }
     glDisableClientState(GL_VERTEX_ARRAY);
     glFinish();

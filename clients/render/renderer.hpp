@@ -30,6 +30,11 @@ struct RenderSettings {
   bool fibers = false;               ///< Fiber glyphs on the surface elements. Default off.
   /// Glyph length as a multiple of the mean surface edge length, in (0, 10]. Default 0.6.
   double fiber_length = 0.6;
+  /// At most this many glyphs: with more surface triangles, every k-th triangle gets one
+  /// (k = ceil(triangles / max)), in [1, 10^7]. Default 4000.
+  int max_fiber_glyphs = 4000;
+  /// Caption and label text height (em), pixels; 0 picks height / 42 (at least 9). Default 0.
+  int font_px = 0;
   /// Supersampling factor per side (anti-aliasing: drawn at k times the size, then
   /// averaged down), in [1, 4]; costs about k^2. Default 1.
   int supersample = 1;
