@@ -284,7 +284,7 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--field", a->field, "activation | fiber_strain | displacement | region | none (default: activation if the scene contracts, else displacement)");
   cmd->add_option("--camera", a->camera, "Preset: front | back | left | right | top | iso, framing the rest surface")->capture_default_str();
   cmd->add_option("--eye", a->eye, "Eye position x y z, m (overrides the preset's)")->expected(3);
-  cmd->add_option("--target", a->target, "Point looked at x y z, m (default: the rest bounding-box centre)")->expected(3);
+  cmd->add_option("--target", a->target, "Point looked at x y z, m; the preset eye moves with it (default: the preset framing's, near the box centre)")->expected(3);
   cmd->add_option("--up", a->up, "Up direction x y z (default: +z; +y for top)")->expected(3);
   cmd->add_option("--fit", a->fit, "What the preset frames: rest (the rest surface, fixed camera) or frame (each frame's deformed surface)")
       ->capture_default_str();

@@ -39,6 +39,35 @@ TEST(RenderCli, WritesFramesVideoAndStrip) {
   EXPECT_NE(r.output.find("run.mp4"), std::string::npos) << r.output;
 }
 
+int count_frames(const std::string& dir) {
+  int n = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) n += e.path().extension() == ".png";
+  return n;
+}
+
+// --at picks steps by time, --last only the end; a static scene draws rest and equilibrium.
+TEST(RenderCli, FrameSelectionAndStaticScenes) {
+  TempDir dir;
+  const std::vector<std::string> small = {"--width", "48", "--height", "32", "--no-overlay"};
+  auto run = [&](std::vector<std::string> args) {
+    args.insert(args.begin(), kBin);
+    args.insert(args.end(), small.begin(), small.end());
+    const auto r = run_process(args);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return r.output;
+  };
+  run({"render", kScene, "--out", dir.file("at"), "--at", "0.05", "0.1"});
+  EXPECT_EQ(count_frames(dir.file("at")), 2);
+  EXPECT_NE(run({"render", kScene, "--out", dir.file("last"), "--steps", "3", "--last"}).find("1 frames"), std::string::npos);
+  EXPECT_EQ(count_frames(dir.file("last")), 1);
+  const std::string stat = std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/cantilever-along.yaml";
+  run({"render", stat, "--out", dir.file("static")});
+  ASSERT_EQ(count_frames(dir.file("static")), 2);
+  // The equilibrium sags under its load: the two frames differ.
+  EXPECT_NE(render::read_png(dir.file("static") + "/frame-00000.png").rgba,
+            render::read_png(dir.file("static") + "/frame-00001.png").rgba);
+}
+
 TEST(RenderCli, BadInputIsRefusedByName) {
   TempDir dir;
   const std::vector<std::string> base = {kBin, "render", kScene, "--steps", "1"};
