@@ -35,7 +35,7 @@ struct RenderArgs {
   double fov = 30, until = 0, fps = 0, margin = 0.1;
   int width = 1280, height = 720, every = 1, steps = 0, png_level = 1, supersample = 1, strip_panels = 8, strip_width = 240;
   std::vector<std::string> overrides;
-  bool fibers = false, no_png = false, time = false, no_overlay = false, force_static = false, last = false, flat = false;
+  bool fibers = false, no_png = false, time = false, no_overlay = false, force_static = false, last = false, flat = false, vertex_lighting = false;
 };
 
 double median(std::vector<double> v) {
@@ -91,6 +91,7 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     if (!a.range.empty()) rs.range = std::make_pair(a.range[0], a.range[1]);
     rs.colour_bar = rs.caption = !a.no_overlay;
     rs.smooth = !a.flat;
+    rs.per_pixel_lighting = !a.vertex_lighting;
     rs.validate();
     if (rs.field == render::Field::activation && !contracting)
       throw std::invalid_argument("--field activation: scene '" + sc.name + "' has no contraction (try --field displacement)");
@@ -302,6 +303,7 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--set", a->overrides, "Override a scene key: key.path=value (repeatable, as fiberfem run)");
   cmd->add_flag("--static", a->force_static, "Solve for static equilibrium and render the rest state and the solution (static scenes do this anyway)");
   cmd->add_flag("--flat", a->flat, "Colour each triangle by its element's value (activation, fiber_strain) instead of smoothing to the nodes");
+  cmd->add_flag("--vertex-lighting", a->vertex_lighting, "Light per vertex (fixed-function Gouraud) instead of per pixel");
   cmd->add_flag("--fibers", a->fibers, "Draw fiber glyphs (F f) on the surface");
   cmd->add_option("--range", a->range, "Fixed colour range MIN MAX in the field's SI unit (displacement in m)")->expected(2);
   cmd->add_option("--mp4", a->mp4, "Also encode the frames into this MP4 (ffmpeg)");

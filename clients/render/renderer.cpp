@@ -278,7 +278,6 @@ struct Renderer::Impl {
     glEnable(GL_POLYGON_OFFSET_FILL);
     glPolygonOffset(1.f, 1.f);
 
-    glUseProgram(program);
     const float key[3] = {-0.35f, 0.55f, 0.76f}, fill[3] = {0.8f, -0.15f, 0.58f};
     float dirs[6];
     for (int k = 0; k < 3; ++k) dirs[k] = key[k], dirs[3 + k] = fill[k];
@@ -286,12 +285,42 @@ struct Renderer::Impl {
       const float n = std::sqrt(dirs[3 * l] * dirs[3 * l] + dirs[3 * l + 1] * dirs[3 * l + 1] + dirs[3 * l + 2] * dirs[3 * l + 2]);
       for (int k = 0; k < 3; ++k) dirs[3 * l + k] /= n;
     }
-    const float power[2] = {0.62f, 0.28f};
-    glUniform3fv(glGetUniformLocation(program, "light_dir"), 2, dirs);
-    glUniform1fv(glGetUniformLocation(program, "light_power"), 2, power);
-    glUniform1f(glGetUniformLocation(program, "ambient"), 0.32f);
-    glUniform1f(glGetUniformLocation(program, "specular"), 0.18f);
-    glUniform1f(glGetUniformLocation(program, "orthographic"), camera.orthographic ? 1.f : 0.f);
+    const float power[2] = {0.62f, 0.28f}, ambient = 0.32f, specular = 0.18f;
+    if (settings.per_pixel_lighting) {
+      glUseProgram(program);
+      glUniform3fv(glGetUniformLocation(program, "light_dir"), 2, dirs);
+      glUniform1fv(glGetUniformLocation(program, "light_power"), 2, power);
+      glUniform1f(glGetUniformLocation(program, "ambient"), ambient);
+      glUniform1f(glGetUniformLocation(program, "specular"), specular);
+      glUniform1f(glGetUniformLocation(program, "orthographic"), camera.orthographic ? 1.f : 0.f);
+    } else {
+      // The same two lights in OpenGL's fixed-function pipeline (per vertex). Directions
+      // are given in eye space: load the identity before setting them.
+      glPushMatrix();
+      glLoadIdentity();
+      glEnable(GL_LIGHTING);
+      glEnable(GL_NORMALIZE);
+      const float amb[4] = {ambient, ambient, ambient, 1.f};
+      glLightModelfv(GL_LIGHT_MODEL_AMBIENT, amb);
+      for (int l = 0; l < 2; ++l) {
+        const GLenum light = GL_LIGHT0 + static_cast<GLenum>(l);
+        const float pos[4] = {dirs[3 * l], dirs[3 * l + 1], dirs[3 * l + 2], 0.f};
+        const float diffuse[4] = {power[l], power[l], power[l], 1.f}, spec[4] = {power[l] * specular, power[l] * specular, power[l] * specular, 1.f};
+        const float none[4] = {0.f, 0.f, 0.f, 1.f};
+        glEnable(light);
+        glLightfv(light, GL_POSITION, pos);
+        glLightfv(light, GL_DIFFUSE, diffuse);
+        glLightfv(light, GL_SPECULAR, spec);
+        glLightfv(light, GL_AMBIENT, none);
+      }
+      glPopMatrix();
+      const float white[4] = {1.f, 1.f, 1.f, 1.f};
+      glMaterialfv(GL_FRONT_AND_BACK, GL_SPECULAR, white);
+      glMaterialf(GL_FRONT_AND_BACK, GL_SHININESS, 40.f);
+      glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
+      glEnable(GL_COLOR_MATERIAL);
+      glShadeModel(GL_SMOOTH);
+    }
     glEnableClientState(GL_VERTEX_ARRAY);
     glEnableClientState(GL_NORMAL_ARRAY);
     glEnableClientState(GL_COLOR_ARRAY);
@@ -302,6 +331,7 @@ struct Renderer::Impl {
     glDisableClientState(GL_NORMAL_ARRAY);
     glDisableClientState(GL_COLOR_ARRAY);
     glUseProgram(0);
+    glDisable(GL_LIGHTING);
     if (!glyphs.empty()) {
       glLineWidth(1.4f * static_cast<float>(settings.supersample));
       glEnableClientState(GL_COLOR_ARRAY);

@@ -38,6 +38,9 @@ struct RenderSettings {
   /// Supersampling factor per side (anti-aliasing: drawn at k times the size, then
   /// averaged down), in [1, 4]; costs about k^2. Default 1.
   int supersample = 1;
+  /// Lighting per pixel (Blinn-Phong in a GLSL 1.20 fragment shader), or per vertex
+  /// (OpenGL's fixed-function Blinn-Phong, Gouraud-interpolated; same lights). Default true.
+  bool per_pixel_lighting = true;
   bool colour_bar = true;            ///< Colour bar (scalar fields) or region legend. Default on.
   bool caption = true;               ///< FrameView::caption at the top left. Default on.
   Rgba background{255, 255, 255, 255};  ///< Default white.
@@ -56,15 +59,15 @@ struct RenderTimes {
   double total_s = 0;
 };
 
-/// Draws frames of one mesh. Owns an OSMesa context, so the thread that constructs it
-/// draws with it (or calls make_current-like use from one thread at a time). Drawing is
+/// Draws frames of one mesh. Owns an OSMesa context; use it from one thread at a time
+/// (render() binds the context to the calling thread). Drawing is
 /// synchronous: a live caller keeps only the newest frame (FrameMailbox) and renders when
 /// the previous render() has returned, so a slow renderer drops frames instead of
 /// slowing the simulation.
 class Renderer {
  public:
-  /// Extracts the surface of `mesh` and creates the context. The mesh is copied by
-  /// reference: it must outlive the renderer.
+  /// Extracts the surface of `mesh` and creates the context. The renderer keeps a
+  /// reference to `mesh`: it must outlive the renderer.
   /// @throws std::invalid_argument for bad settings; std::runtime_error if OSMesa fails.
   Renderer(const core::TetMesh& mesh, RenderSettings settings = {});
   ~Renderer();

@@ -44,9 +44,9 @@ double median(std::vector<double> v) {
   return n == 0 ? 0 : n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-void bench(const std::string& label, const core::TetMesh& mesh, int width, int height, int frames, int png_level) {
+void bench(const std::string& label, const core::TetMesh& mesh, int width, int height, int frames, int png_level, bool per_pixel) {
   render::RenderSettings s;
-  s.width = width, s.height = height, s.field = render::Field::activation;
+  s.width = width, s.height = height, s.field = render::Field::activation, s.per_pixel_lighting = per_pixel;
   render::Renderer r(mesh, s);
   const auto [lo, hi] = mesh.bounding_box();
   const double size = (hi - lo).norm();
@@ -87,7 +87,8 @@ void bench(const std::string& label, const core::TetMesh& mesh, int width, int h
   }
   video.close();
   std::filesystem::remove_all(dir);
-  std::printf("| %s | %d | %zu | %dx%d | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f |\n", label.c_str(), mesh.num_nodes(),
+  std::printf("| %s | %s | %d | %zu | %dx%d | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f | %.1f |\n", label.c_str(),
+              per_pixel ? "pixel" : "vertex", mesh.num_nodes(),
               mesh.boundary_triangles().size(), width, height, 1e3 * median(prepare), 1e3 * median(draw), 1e3 * median(readback),
               1e3 * median(overlay), 1e3 * median(png), 1e3 * median(pipe), 1e3 * median(total));
   std::fflush(stdout);
@@ -111,16 +112,19 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   if (quick) width = 160, height = 90, frames = 3, cells = {4, 4, 4};
   try {
-    std::printf("| mesh | nodes | surface triangles | image | prepare ms | draw ms | readback ms | overlay ms | PNG level %d ms | ffmpeg pipe ms | total ms |\n",
+    std::printf("| mesh | lighting | nodes | surface triangles | image | prepare ms | draw ms | readback ms | overlay ms | PNG level %d ms | ffmpeg pipe ms | total ms |\n",
                 png_level);
-    std::printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
+    std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     const fiberfem::io::Scene sc = fiberfem::io::load_scene(heart);
-    bench("heart", sc.model.mesh, width, height, frames, png_level);
     core::BoxSpec spec;
     spec.size_m = {0.1, 0.1, 0.1};
     spec.cells = {cells[0], cells[1], cells[2]};
-    bench("box " + std::to_string(cells[0]) + "x" + std::to_string(cells[1]) + "x" + std::to_string(cells[2]), core::make_box(spec),
-          width, height, frames, png_level);
+    const core::TetMesh box = core::make_box(spec);
+    const std::string box_label = "box " + std::to_string(cells[0]) + "x" + std::to_string(cells[1]) + "x" + std::to_string(cells[2]);
+    for (bool per_pixel : {true, false}) {
+      bench("heart", sc.model.mesh, width, height, frames, png_level, per_pixel);
+      bench(box_label, box, width, height, frames, png_level, per_pixel);
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_render: %s\n", e.what());
     return 1;

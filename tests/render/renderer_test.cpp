@@ -53,7 +53,10 @@ TEST(Renderer, FrameOfABoxIsNotBlank) {
 TEST(Renderer, CubeHeadOnCoversTheAnalyticArea) {
   const core::TetMesh mesh = unit_cube();
   const int W = 240, H = 200;
-  Renderer r(mesh, plain(W, H));
+  for (bool per_pixel : {true, false}) {
+  RenderSettings settings = plain(W, H);
+  settings.per_pixel_lighting = per_pixel;
+  Renderer r(mesh, settings);
   Camera c;
   const double D = 2.0, fov = 40.0;
   c.eye = {0.5, -D, 0.5}, c.target = {0.5, 0.5, 0.5}, c.up = {0, 0, 1}, c.fov_deg = fov;
@@ -61,7 +64,8 @@ TEST(Renderer, CubeHeadOnCoversTheAnalyticArea) {
   const double side = H / (2 * D * std::tan(0.5 * fov * M_PI / 180));
   const double expected = side * side;
   const long got = count_foreground(r.render(FrameView(mesh, mesh.rest_positions())));
-  EXPECT_NEAR(got / expected, 1.0, 0.02) << got << " pixels, expected " << expected;
+  EXPECT_NEAR(got / expected, 1.0, 0.02) << got << " pixels, expected " << expected << (per_pixel ? "" : " (per-vertex lighting)");
+  }
 }
 
 // Orthographic along a unit direction n, a unit cube covers |n_x| + |n_y| + |n_z| square
