@@ -27,6 +27,7 @@ class Font {
   Font(const Font&) = delete;
   Font& operator=(const Font&) = delete;
 
+  /// Em height, pixels.
   int pixel_size() const { return size_; }
   /// Height above the baseline of capitals, pixels.
   int ascent() const { return ascent_; }

@@ -26,6 +26,7 @@ class OsmesaContext {
 
   /// Binds the context and its buffer to the calling thread. @throws std::runtime_error.
   void make_current();
+  /// Buffer width and height, pixels.
   int width() const { return width_; }
   int height() const { return height_; }
   /// The colour buffer, width * height * 4 bytes, top row first; complete after glFinish().

@@ -76,6 +76,7 @@ class Renderer {
 
   /// The camera used from the next render() on. @throws std::invalid_argument (Camera::validate()).
   void set_camera(const Camera& camera);
+  /// The current camera and the (validated) settings.
   const Camera& camera() const;
   const RenderSettings& settings() const;
   /// The colour range the last frame used (field SI unit).
@@ -85,6 +86,7 @@ class Renderer {
   /// @throws std::invalid_argument if the frame does not match the mesh or lacks the
   /// data the field needs (activation, fibers).
   const Image& render(const FrameView& frame);
+  /// Phase times of the last render(), seconds.
   const RenderTimes& last_times() const;
   /// GL renderer and version string of the context.
   std::string describe() const;
