@@ -10,7 +10,10 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <random>
+#include <thread>
 
 namespace fiberfem::render {
 namespace {
@@ -104,6 +107,38 @@ TEST(FrameMailbox, KeepsTheNewestFrameAndCountsTheDropped) {
   EXPECT_EQ(got->sequence, 3);
   EXPECT_EQ(box.dropped(), 2);
   EXPECT_FALSE(box.take());
+}
+
+// A producer that never waits against a slow consumer: every frame is either taken or
+// counted as dropped, and the consumer ends with the newest one.
+TEST(FrameMailbox, SlowConsumerSeesTheNewestFrameAndNothingIsLost) {
+  FrameMailbox box;
+  constexpr long kFrames = 2000;
+  std::atomic<bool> done{false};
+  long taken = 0, last = 0;
+  std::thread consumer([&] {
+    for (;;) {
+      const bool finished = done.load();
+      if (auto f = box.take()) {
+        EXPECT_GT(f->sequence, last);  // newer every time
+        last = f->sequence, ++taken;
+        std::this_thread::sleep_for(std::chrono::microseconds(200));  // "rendering"
+      } else if (finished) {
+        break;
+      }
+    }
+  });
+  for (long s = 1; s <= kFrames; ++s) {
+    FrameData f;
+    f.sequence = s;
+    f.x = core::Positions::Zero(3, 8);
+    box.publish(std::move(f));
+  }
+  done = true;
+  consumer.join();
+  EXPECT_EQ(last, kFrames);
+  EXPECT_EQ(taken + box.dropped(), kFrames);
+  EXPECT_GT(box.dropped(), 0);
 }
 
 }  // namespace
