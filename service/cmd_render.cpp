@@ -111,9 +111,9 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     std::vector<double> at = a.at;  // --at: render only the steps nearest these times
     std::sort(at.begin(), at.end());
     const double until = a.until > 0 ? a.until : !at.empty() ? std::max(at.back(), dt) : sc.until_s;
-    if (!at.empty() && at.back() > until + 0.5 * dt)
-      throw std::invalid_argument("--at " + std::to_string(at.back()) + " s is after the end of the run (" + std::to_string(until) + " s)");
     const long steps = a.steps > 0 ? a.steps : std::max(1L, std::lround(until / dt));
+    if (!at.empty() && at.back() > (steps + 0.5) * dt)
+      throw std::invalid_argument("--at " + std::to_string(at.back()) + " s is after the end of the run (" + std::to_string(steps * dt) + " s)");
     if (steps > 100000000L) throw std::invalid_argument("render: over 1e8 steps");
     const double fps = a.fps > 0 ? a.fps : std::clamp(1.0 / (a.every * dt), 1.0, 240.0);
 

@@ -91,6 +91,7 @@ TEST(RenderCli, BadInputIsRefusedByName) {
   run({"--out", dir.file("a"), "--range", "1", "0"}, "range");
   run({"--out", dir.file("a"), "--mp4", "/nonexistent-dir/x.mp4"}, "cannot write /nonexistent-dir/x.mp4");
   run({"--no-png"}, "--no-png leaves nothing");
+  run({"--out", dir.file("a"), "--at", "5"}, "--at 5.000000 s is after the end of the run");
   run({"--out", dir.file("a"), "--png-level", "12"}, "--png-level 12");
   run({"--out", dir.file("a"), "--strip", dir.file("s.png"), "--set", "contraction={peak_tension: 1000}"}, "shorter than one beat");
   // ffmpeg missing from PATH
