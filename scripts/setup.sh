@@ -17,7 +17,7 @@ packages=(
   cyclonedds-dev cyclonedds-tools libhdf5-dev hdf5-tools
   # pvpython: the archive's XDMF sidecar is tested in ParaView's own reader
   python3-paraview
-  libosmesa6-dev ffmpeg
+  libosmesa6-dev ffmpeg libfreetype-dev fonts-dejavu-core
   python3 python3-venv time
   # the gmsh wheel's runtime libraries (scripts/make_*.py regenerate the shipped meshes)
   libglu1-mesa libxcursor1 libxft2 libxinerama1 libgl1 libfontconfig1

@@ -24,4 +24,8 @@ void add_replay_command(CLI::App& app, int& exit_code);
 /// with FIBERFEM_WITH_HDF5).
 void add_archive_command(CLI::App& app, int& exit_code);
 
+/// `fiberfem render`: simulate a scene and render it off-screen (cmd_render.cpp); built
+/// when FIBERFEM_WITH_OSMESA is on (compile definition FIBERFEM_HAVE_RENDER).
+void add_render_command(CLI::App& app, int& exit_code);
+
 }  // namespace fiberfem::service

@@ -1,5 +1,6 @@
 // The `fiberfem` command: one subcommand per job (service/commands.hpp), each in its own
-// file. `fiberfem run SCENE.yaml` runs a scene in batch (docs/options.md).
+// file. `fiberfem run SCENE.yaml` runs a scene in batch (docs/options.md); `fiberfem render`
+// draws one off-screen (docs/rendering.md).
 
 #include "service/commands.hpp"
 
@@ -19,6 +20,9 @@ int main(int argc, char** argv) {
 #if defined(FIBERFEM_WITH_DDS)
   fiberfem::service::add_replay_command(app, exit_code);
 #endif
+#endif
+#ifdef FIBERFEM_HAVE_RENDER
+  fiberfem::service::add_render_command(app, exit_code);
 #endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;

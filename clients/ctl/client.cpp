@@ -1,5 +1,8 @@
 #include "clients/ctl/client.hpp"
 
+#include <atomic>
+#include <cstring>
+#include <cstdio>
 #include <stdexcept>
 #include <thread>
 #include <unistd.h>
@@ -53,14 +56,47 @@ std::chrono::nanoseconds left(Clock::time_point deadline) {
 
 }  // namespace
 
+// Unique per Client object (acks are transient-local: a client must not take another's
+// answer for its own): pid, a counter, and the clock.
+std::string unique_client_id() {
+  static std::atomic<int> counter{0};
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "ctl-%d-%d-%llx", static_cast<int>(getpid()), ++counter,
+                static_cast<unsigned long long>(std::chrono::system_clock::now().time_since_epoch().count() & 0xffffff));
+  return buf;
+}
+
 Client::Client(std::string client_id)
-    : client_id_(client_id.empty() ? "ctl-" + std::to_string(getpid()) : std::move(client_id)),
+    : client_id_(client_id.empty() ? unique_client_id() : std::move(client_id)),
       status_reader_(pp_),
       ack_reader_(pp_),
       command_writer_(pp_) {}
 
 void Client::poll_status() {
-  status_reader_.take([&](const fiberfem_ServiceStatus& s, const dds_sample_info_t&) { runs_[dds::str(s.run_id)] = to_status(s); });
+  status_reader_.take([&](const fiberfem_ServiceStatus& s, const dds_sample_info_t& info) {
+    const std::string id = dds::str(s.run_id);
+    runs_[id] = to_status(s);
+    if (!participants_.count(id))
+      if (dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(status_reader_.get(), info.publication_handle)) {
+        participants_[id] = ep->participant_key;
+        dds_builtintopic_free_endpoint(ep);
+      }
+  });
+}
+
+bool Client::command_reader_matched(const std::string& run_id) const {
+  const auto p = participants_.find(run_id);
+  dds_instance_handle_t handles[256];
+  const dds_return_t n = dds_get_matched_subscriptions(command_writer_.get(), handles, 256);
+  for (dds_return_t i = 0; i < n && i < 256; ++i) {
+    if (p == participants_.end()) return true;  // the run's participant unknown: any reader will do
+    dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(command_writer_.get(), handles[i]);
+    if (!ep) continue;
+    const bool same = std::memcmp(ep->participant_key.v, p->second.v, sizeof p->second.v) == 0;
+    dds_builtintopic_free_endpoint(ep);
+    if (same) return true;
+  }
+  return false;
 }
 
 std::map<std::string, RunStatus> Client::discover(std::chrono::milliseconds wait) {
@@ -166,13 +202,13 @@ std::optional<State> Client::next_state(const std::string& run_id, std::chrono::
 Ack Client::send(const std::string& run_id, const std::string& kind, const std::string& args_json,
                  std::chrono::milliseconds wait) {
   const auto deadline = Clock::now() + wait;
-  // Commands are volatile: write only once the service's command reader is matched. Every
-  // run seen on the domain has one, so wait until at least that many readers match.
+  // Commands are volatile: write only once the command reader of the run's own participant
+  // (known from its status) is matched.
   poll_status();
-  const int runs = std::max<int>(1, static_cast<int>(runs_.size()));
-  while (command_writer_.matched() < runs && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  if (command_writer_.matched() == 0)
-    throw std::runtime_error("no service matched the command topic within the timeout (is '" + run_id + "' running?)");
+  if (!participants_.count(run_id)) resolve_run(run_id, std::chrono::duration_cast<std::chrono::milliseconds>(left(deadline)));
+  while (!command_reader_matched(run_id) && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  if (!command_reader_matched(run_id))
+    throw std::runtime_error("the command reader of run '" + run_id + "' was not matched within the timeout (is it running?)");
   std::string id = client_id_ + "-" + std::to_string(++next_command_);
   std::string rid = run_id, cid = client_id_, k = kind, args = args_json.empty() ? "{}" : args_json;
   fiberfem_Command c{};

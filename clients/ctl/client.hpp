@@ -90,6 +90,9 @@ class Client {
   std::optional<dds::Reader<fiberfem_MeshState>> state_reader_;
   std::optional<dds::Reader<fiberfem_MeshTopology>> topology_reader_;
   std::map<std::string, RunStatus> runs_;  // newest status per run
+  std::map<std::string, dds_guid_t> participants_;  // the participant of each run (from its status writer)
+  /// Whether the command writer has matched a reader of `run_id`'s participant.
+  bool command_reader_matched(const std::string& run_id) const;
   void poll_status();
 };
 

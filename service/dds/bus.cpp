@@ -4,7 +4,8 @@
 //             would drop a whole frame when one fragment is lost; keep-last 1 never
 //             blocks the writer on a slow reader, it replaces the frame)
 //   command   reliable, volatile, keep-all              (no command is lost)
-//   ack       reliable, volatile, keep-all
+//   ack       reliable, transient-local, keep-last 64 per run (an answer written before
+//             the service discovered the asking client's reader still reaches it)
 //   status    reliable, volatile, keep-last 1, deadline, liveliness lease
 
 #include "service/dds/bus.hpp"
@@ -36,9 +37,12 @@ void set_qos(dds_qos_t* q, Topic t) {
       dds_qset_deadline(q, kStateDeadline);
       break;
     case Topic::command:
-    case Topic::ack:
       dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
       dds_qset_history(q, DDS_HISTORY_KEEP_ALL, DDS_LENGTH_UNLIMITED);
+      break;
+    case Topic::ack:
+      dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 64);
       break;
     case Topic::status:
       dds_qset_durability(q, DDS_DURABILITY_VOLATILE);

@@ -16,6 +16,7 @@ the service (configs/dds/loopback.xml on one host).
 import json
 import os
 import time
+import uuid
 from dataclasses import dataclass
 from typing import Dict, Iterator, Optional
 
@@ -34,7 +35,7 @@ QOS = {
     "topology": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1)),
     "state": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
     "command": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepAll),
-    "ack": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepAll),
+    "ack": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(64)),
     "status": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
 }
 TOPIC_NAMES = {
@@ -89,7 +90,7 @@ class Client:
     """One DDS participant with readers of status, acks, states and topology and a writer of commands."""
 
     def __init__(self, client_id: Optional[str] = None, domain_id: int = 0):
-        self.client_id = client_id or f"py-{os.getpid()}"
+        self.client_id = client_id or f"py-{os.getpid()}-{uuid.uuid4().hex[:8]}"
         self._next = 0
         self.dp = DomainParticipant(domain_id)
         t = {k: Topic(self.dp, TOPIC_NAMES[k], cls, qos=QOS[k])
@@ -191,7 +192,11 @@ class Client:
         """Sends a command (docs/commands.md) and waits for its acknowledgement."""
         end = time.monotonic() + wait_s
         self._poll_status()
-        while len(self._command.get_matched_subscriptions()) < max(1, len(self.runs)) and time.monotonic() < end:
+        # Commands are volatile: wait for a matched command reader (for all the runs seen,
+        # at most 2 s: a run that just ended may still be listed).
+        settle = min(end, time.monotonic() + 2.0)
+        while time.monotonic() < end and (not self._command.get_matched_subscriptions() or (
+                len(self._command.get_matched_subscriptions()) < len(self.runs) and time.monotonic() < settle)):
             time.sleep(0.01)
         if not self._command.get_matched_subscriptions():
             raise FiberfemError(f"no service matched the command topic (is '{run_id}' running?)")

@@ -60,7 +60,6 @@ class CommandAck(IdlStruct, typename="fiberfem::CommandAck"):
     run_id: str
     key("run_id")
     command_id: str
-    key("command_id")
     client_id: str
     accepted: bool
     reason: str
