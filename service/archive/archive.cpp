@@ -120,7 +120,9 @@ struct WriterFile {
   long frames = 0, since_flush = 0;
   std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
   double next_checkpoint_s = 0;
-  long last_checkpoint_step = -1;
+  long last_checkpoint_step = -1;         // the last checkpoint's step, state and parameters
+  Eigen::VectorXd last_checkpoint_x, last_checkpoint_v;
+  std::string last_checkpoint_params;
   std::vector<float> fbuf;
   bool closed = false;
   std::string xdmf_path;
@@ -395,8 +397,12 @@ void ArchiveWriter::record_command(const CommandRecord& c) {
 void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& parameter_state_json) {
   detail::WriterFile& w = *f_;
   if (w.closed) throw std::logic_error("archive: checkpoint after close");
-  if (sim.step_count() == w.last_checkpoint_step) return;  // already have this state
   const core::SimulatorCheckpoint c = sim.checkpoint();
+  // The same state again (a periodic checkpoint on the run's last step, then the final
+  // one): keep one. A state revisited after a restore differs in x or v or parameters.
+  if (c.step_count == w.last_checkpoint_step && c.x == w.last_checkpoint_x && c.v == w.last_checkpoint_v &&
+      parameter_state_json == w.last_checkpoint_params)
+    return;
   Blob b;
   b.add("x", c.x.data(), static_cast<size_t>(c.x.size()));
   b.add("v", c.v.data(), static_cast<size_t>(c.v.size()));
@@ -447,6 +453,9 @@ void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& pa
   const std::int64_t step = c.step_count;
   w.cp_step.append(&step, 1);  // last: the checkpoint is complete
   w.last_checkpoint_step = c.step_count;
+  w.last_checkpoint_x = c.x;
+  w.last_checkpoint_v = c.v;
+  w.last_checkpoint_params = parameter_state_json;
 }
 
 void ArchiveWriter::flush() {

@@ -86,7 +86,8 @@ class ArchiveWriter {
   /// Records a command (applied or refused).
   void record_command(const CommandRecord& c);
   /// Writes a resumable checkpoint of `sim` now; `parameter_state_json` is kept opaque
-  /// (the service stores the applied parameter commands; batch runs pass "{}").
+  /// (the service stores the applied parameter commands; batch runs pass "{}"). The same
+  /// step, state and parameters as the last checkpoint are not written twice.
   void checkpoint(const core::Simulator& sim, const std::string& parameter_state_json);
   /// Makes everything recorded so far durable against a crash of this process.
   void flush();
