@@ -14,6 +14,7 @@ import signal
 import statistics
 import subprocess
 import tempfile
+import threading
 import time
 
 import h5py
@@ -43,26 +44,23 @@ def main():
                 path = os.path.join(work, f"k{flush}_{t}.h5")
                 p = subprocess.Popen([a.binary, "run", a.scene, "--steps", "100000", "--archive", path, "--flush-frames", str(flush),
                                       "--flush-seconds", "0", "--log-frames"], stdout=subprocess.PIPE, text=True, env=env)
-                announced = 0
-                for line in p.stdout:
-                    if line.startswith("frame "):
-                        announced = int(line.split()[1])
-                        break
-                deadline = time.monotonic() + rng.uniform(0.05, a.max_delay)
-                os.set_blocking(p.stdout.fileno(), False)
-                while time.monotonic() < deadline:
-                    chunk = p.stdout.read()
-                    if chunk:
-                        for line in chunk.splitlines():
-                            if line.startswith("frame "):
-                                announced = int(line.split()[1])
-                    time.sleep(0.002)
+                state = {"announced": 0}
+                started = threading.Event()
+
+                def follow(stream=p.stdout, state=state, started=started):
+                    for line in stream:
+                        if line.startswith("frame "):
+                            state["announced"] = int(line.split()[1])
+                            started.set()
+
+                reader = threading.Thread(target=follow, daemon=True)
+                reader.start()
+                started.wait(timeout=60)
+                time.sleep(rng.uniform(0.05, a.max_delay))
                 p.send_signal(signal.SIGKILL)
                 p.wait()
-                rest = p.stdout.read() or ""
-                for line in rest.splitlines():
-                    if line.startswith("frame "):
-                        announced = int(line.split()[1])
+                reader.join(timeout=5)
+                announced = state["announced"]
                 n = readable_frames(path)
                 lost.append(announced - n)
                 kept.append(n)
