@@ -252,7 +252,9 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
       w.velocities = h5::create_extendible<float>(gid, "velocities", {N, 3}, 1, w.o.compression);
       h5::write_attribute(w.velocities.id(), "unit", std::string("m/s"));
     }
-    w.activation = h5::create_extendible<float>(gid, "activation", {E}, 1, w.o.compression);
+    // Activation is always deflated (level 1 at least): it is zero between beats and
+    // everywhere without contraction, where raw storage would be pure waste (docs/archive.md).
+    w.activation = h5::create_extendible<float>(gid, "activation", {E}, 1, std::max(1, w.o.compression));
     h5::write_attribute(w.activation.id(), "unit", std::string("Pa"));
     std::vector<std::string> cavity_names;
     for (const io::CavityMeasure& c : scene.cavities) cavity_names.push_back(c.name);

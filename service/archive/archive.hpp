@@ -38,9 +38,10 @@ struct ArchiveOptions {
   /// A checkpoint (double precision, resumable) every this much simulated time, s, in
   /// [0, 1e9]; 0: only the first and the last. Default 1.
   double checkpoint_every_s = 1.0;
-  /// Deflate level of the per-frame arrays (positions, velocities, activation), in [0, 9];
-  /// 0 stores them raw. Default 0 (measured in docs/archive.md: level 1 saves 8 to 11% of
-  /// the bytes of the heart's positions for 2x the recording time).
+  /// Deflate level (with byte shuffle) of the per-frame node arrays (positions,
+  /// displacement, velocities), in [0, 9]; 0 stores them raw. The activation is always
+  /// deflated, at this level or 1. Default 0 (docs/archive.md: deflating float32
+  /// positions saves little and costs 20x the recording time).
   int compression = 0;
   /// @throws std::invalid_argument naming the field.
   void validate() const;
