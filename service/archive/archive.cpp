@@ -252,9 +252,8 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
       w.velocities = h5::create_extendible<float>(gid, "velocities", {N, 3}, 1, w.o.compression);
       h5::write_attribute(w.velocities.id(), "unit", std::string("m/s"));
     }
-    // Activation is always deflated (level 1 at least): it is zero between beats and
-    // everywhere without contraction, where raw storage would be pure waste (docs/archive.md).
-    w.activation = h5::create_extendible<float>(gid, "activation", {E}, 1, std::max(1, w.o.compression));
+    // Without contraction the activation rows are left unwritten (fill value 0, no bytes).
+    w.activation = h5::create_extendible<float>(gid, "activation", {E}, 1, w.o.compression);
     h5::write_attribute(w.activation.id(), "unit", std::string("Pa"));
     std::vector<std::string> cavity_names;
     for (const io::CavityMeasure& c : scene.cavities) cavity_names.push_back(c.name);
@@ -335,8 +334,7 @@ void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepRep
   if (w.velocities) w.velocities.append(as_float(sim.velocities().data(), n3), 1);
   const std::vector<double>& a = sim.active_tension();
   if (a.empty()) {
-    w.fbuf.assign(static_cast<size_t>(w.ne), 0.0f);
-    w.activation.append(w.fbuf.data(), 1);
+    w.activation.extend(1);  // reads as zeros, stores nothing
   } else {
     w.activation.append(as_float(a.data(), a.size()), 1);
   }
