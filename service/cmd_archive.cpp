@@ -110,6 +110,19 @@ void add_archive_command(CLI::App& app, int& exit_code) {
     }
   });
 
+  auto* xdmf = cmd->add_subcommand("xdmf", "Rewrite RUN.xdmf from RUN.h5 (also while a writer adds frames)");
+  xdmf->add_option("archive", a->path, "The run archive (.h5)")->required();
+  xdmf->callback([a, &exit_code] {
+    try {
+      archive::write_xdmf(a->path);
+      std::cout << "xdmf: sidecar of " << a->path << " rewritten\n";
+      exit_code = 0;
+    } catch (const std::exception& e) {
+      std::cerr << "fiberfem archive xdmf: " << e.what() << "\n";
+      exit_code = 1;
+    }
+  });
+
   auto* exp = cmd->add_subcommand("export-meshio", "Write OUT.xdmf + OUT.h5, one dataset per step (meshio's time-series layout)");
   exp->add_option("archive", a->path, "The run archive (.h5)")->required();
   exp->add_option("out", a->out, "The XDMF file to write (its data go to OUT.h5 beside it)")->required();

@@ -120,7 +120,9 @@ struct WriterFile {
   std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
   double next_checkpoint_s = 0;
   std::string parameter_state = "{}";  // for the periodic checkpoints (set_parameter_state)
-  long last_checkpoint_step = -1;
+  long last_checkpoint_step = -1;         // the last checkpoint's step, state and parameters
+  Eigen::VectorXd last_checkpoint_x, last_checkpoint_v;
+  std::string last_checkpoint_params;
   std::vector<float> fbuf;
   bool closed = false;
   std::string xdmf_path;
@@ -249,6 +251,7 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
       w.velocities = h5::create_extendible<float>(gid, "velocities", {N, 3}, 1, w.o.compression);
       h5::write_attribute(w.velocities.id(), "unit", std::string("m/s"));
     }
+    // Without contraction the activation rows are left unwritten (fill value 0, no bytes).
     w.activation = h5::create_extendible<float>(gid, "activation", {E}, 1, w.o.compression);
     h5::write_attribute(w.activation.id(), "unit", std::string("Pa"));
     std::vector<std::string> cavity_names;
@@ -330,8 +333,7 @@ void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepRep
   if (w.velocities) w.velocities.append(as_float(sim.velocities().data(), n3), 1);
   const std::vector<double>& a = sim.active_tension();
   if (a.empty()) {
-    w.fbuf.assign(static_cast<size_t>(w.ne), 0.0f);
-    w.activation.append(w.fbuf.data(), 1);
+    w.activation.extend(1);  // reads as zeros, stores nothing
   } else {
     w.activation.append(as_float(a.data(), a.size()), 1);
   }
@@ -396,8 +398,12 @@ void ArchiveWriter::set_parameter_state(std::string parameter_state_json) { f_->
 void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& parameter_state_json) {
   detail::WriterFile& w = *f_;
   if (w.closed) throw std::logic_error("archive: checkpoint after close");
-  if (sim.step_count() == w.last_checkpoint_step) return;  // already have this state
   const core::SimulatorCheckpoint c = sim.checkpoint();
+  // The same state again (a periodic checkpoint on the run's last step, then the final
+  // one): keep one. A state revisited after a restore differs in x or v or parameters.
+  if (c.step_count == w.last_checkpoint_step && c.x == w.last_checkpoint_x && c.v == w.last_checkpoint_v &&
+      parameter_state_json == w.last_checkpoint_params)
+    return;
   Blob b;
   b.add("x", c.x.data(), static_cast<size_t>(c.x.size()));
   b.add("v", c.v.data(), static_cast<size_t>(c.v.size()));
@@ -449,6 +455,9 @@ void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& pa
   const std::int64_t step = c.step_count;
   w.cp_step.append(&step, 1);  // last: the checkpoint is complete
   w.last_checkpoint_step = c.step_count;
+  w.last_checkpoint_x = c.x;
+  w.last_checkpoint_v = c.v;
+  w.last_checkpoint_params = parameter_state_json;
 }
 
 void ArchiveWriter::flush() {

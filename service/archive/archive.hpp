@@ -38,9 +38,10 @@ struct ArchiveOptions {
   /// A checkpoint (double precision, resumable) every this much simulated time, s, in
   /// [0, 1e9]; 0: only the first and the last. Default 1.
   double checkpoint_every_s = 1.0;
-  /// Deflate level of the per-frame arrays (positions, velocities, activation), in [0, 9];
-  /// 0 stores them raw. Default 0 (measured in docs/archive.md: level 1 saves 8 to 11% of
-  /// the bytes of the heart's positions for 2x the recording time).
+  /// Deflate level (with byte shuffle) of the per-frame node arrays (positions,
+  /// displacement, velocities, activation), in [0, 9]; 0 stores them raw. Default 0
+  /// (docs/archive.md: level 1 saves 20% (heart) to 41% (100k-node box) of the bytes for
+  /// 4x to 30x the recording time).
   int compression = 0;
   /// @throws std::invalid_argument naming the field.
   void validate() const;
@@ -86,7 +87,8 @@ class ArchiveWriter {
   /// Records a command (applied or refused).
   void record_command(const CommandRecord& c);
   /// Writes a resumable checkpoint of `sim` now; `parameter_state_json` is kept opaque
-  /// (the service stores the applied parameter commands; batch runs pass "{}").
+  /// (the service stores the applied parameter commands; batch runs pass "{}"). The same
+  /// step, state and parameters as the last checkpoint are not written twice.
   void checkpoint(const core::Simulator& sim, const std::string& parameter_state_json);
   /// The parameter state the periodic checkpoints of record_frame carry (default "{}";
   /// the service sets its running scene and forces after every accepted command).
@@ -105,14 +107,19 @@ class ArchiveWriter {
 
 /// What the header holds (written once).
 struct ArchiveHeader {
-  int format_version = 0;
-  std::string software_version, git_commit, created_utc, source;
-  std::string scene_name, scene_yaml, scene_sha256;
+  int format_version = 0;                      ///< kFormatVersion.
+  std::string software_version;                ///< fiberfem version that wrote it.
+  std::string git_commit;                      ///< Its git commit, or "unknown".
+  std::string created_utc;                     ///< ISO 8601 UTC.
+  std::string source;                          ///< Scene file, "builtin:NAME" or "resume:RUN.h5".
+  std::string scene_name;                      ///< The scene's name.
+  std::string scene_yaml;                      ///< io::Scene::yaml_text.
+  std::string scene_sha256;                    ///< io::Scene::hash_sha256.
   std::string scene_base_dir;                  ///< Where the scene's relative paths resolve (absolute).
   core::Positions rest_positions;              ///< 3 x N, m.
-  std::vector<core::Tet> tets;
+  std::vector<core::Tet> tets;                 ///< Node indices per element.
   std::vector<int> regions;                    ///< Per element.
-  std::vector<core::Tri> boundary_triangles;
+  std::vector<core::Tri> boundary_triangles;   ///< Outward-oriented boundary faces.
   std::vector<std::uint8_t> fixed_dofs;        ///< 3N, 1 = fixed.
   std::vector<core::Vec3> fibers;              ///< Per element, unit.
   std::vector<core::Mat6> stiffness_pa;        ///< Per region, Voigt, Pa.
@@ -120,15 +127,15 @@ struct ArchiveHeader {
   double dt_s = 0;                             ///< Time step, s.
   std::vector<std::string> cavity_names;       ///< Columns of Frame::cavity_volumes_m3.
   std::vector<std::string> probe_names;        ///< Columns of Frame::probe_displacements_m.
-  bool has_velocities = false;
-  bool has_displacement = false;
-  int every_steps = 1;
+  bool has_velocities = false;                 ///< Frames carry velocities.
+  bool has_displacement = false;               ///< Frames carry displacements.
+  int every_steps = 1;                         ///< Every K-th step was recorded.
 };
 
 /// One recorded frame.
 struct Frame {
-  long step = 0;
-  double time_s = 0;
+  long step = 0;                               ///< Step count.
+  double time_s = 0;                           ///< Simulation time, s.
   core::Positions positions;                   ///< 3 x N, m (stored float32).
   core::Positions velocities;                  ///< 3 x N, m/s, or empty.
   core::Positions displacement;                ///< 3 x N, m (stored float32), or empty.
@@ -137,15 +144,17 @@ struct Frame {
   std::vector<core::Vec3> probe_displacements_m;  ///< Per probe.
   /// Kinetic and elastic energy of the state the step started from (StepReport), J.
   double kinetic_energy_j = 0, elastic_energy_j = 0;
-  int solver_iterations = 0, substeps = 1, inverted_elements = 0;
-  double solver_residual = 0;
+  int solver_iterations = 0;                   ///< PCG iterations of the step (0: a starting frame).
+  int substeps = 1;                            ///< Substeps of the accepted attempt.
+  int inverted_elements = 0;                   ///< Elements with det F <= 0.
+  double solver_residual = 0;                  ///< Largest relative residual.
   std::string status;                          ///< "ok", "recovered" or "failed".
 };
 
 /// A checkpoint's place in the archive.
 struct CheckpointInfo {
-  long step = 0;
-  double time_s = 0;
+  long step = 0;      ///< Step count.
+  double time_s = 0;  ///< Simulation time, s.
 };
 
 /// Reads an archive, closed or live. As a SWMR reader (`follow`) refresh() picks up the
@@ -159,22 +168,28 @@ class ArchiveReader {
   ArchiveReader(ArchiveReader&&) noexcept;
   ArchiveReader& operator=(ArchiveReader&&) noexcept;
 
+  /// What was written once (read at open).
   const ArchiveHeader& header() const { return header_; }
   /// Complete frames (every per-frame dataset has them), as of the last refresh.
   long frames() const { return frames_; }
   /// Re-reads the extents written by a live writer (SWMR). @return frames().
   long refresh();
+  /// Simulation time of each frame, s.
   std::vector<double> times() const;
+  /// Step count of each frame.
   std::vector<long> steps() const;
   /// Frame `i` in [0, frames()). @throws std::out_of_range.
   Frame frame(long i) const;
+  /// Every complete command record, in order (refreshed when following).
   std::vector<CommandRecord> commands() const;
+  /// Every complete checkpoint, in order (refreshed when following).
   std::vector<CheckpointInfo> checkpoints() const;
   /// Index of the last checkpoint at or before `time_s` (with 1e-9 s slack).
   /// @throws std::invalid_argument listing the checkpoint times when there is none.
   size_t checkpoint_at_or_before(double time_s) const;
   /// Reads checkpoint `k`; its parameter-state JSON into `parameter_state` if given.
   core::SimulatorCheckpoint read_checkpoint(size_t k, std::string* parameter_state = nullptr) const;
+  /// The file as opened.
   const std::string& path() const { return path_; }
 
  private:
@@ -202,6 +217,7 @@ void export_meshio(const std::string& h5_path, const std::string& out_xdmf);
 
 /// `fiberfem` version and the git commit it was built from ("unknown" outside a repo).
 std::string software_version();
+/// The git commit this fiberfem was configured from, or "unknown".
 std::string git_commit();
 
 }  // namespace fiberfem::archive

@@ -261,6 +261,14 @@ class Dataset {
     write_rows(data, at, rows);
     return d[0];
   }
+  /// Adds `rows` rows along dimension 0 without writing them: they read as the fill value
+  /// (0) and take no space until written (chunks are allocated when written).
+  hsize_t extend(hsize_t rows) {
+    Dims d = dims();
+    d[0] += rows;
+    check(H5Dset_extent(id(), d.data()), "cannot extend '" + path_ + "'");
+    return d[0];
+  }
   /// Writes rows [first, first + rows) (they must exist).
   template <class T>
   void write_rows(const T* data, hsize_t first, hsize_t rows) {
@@ -330,6 +338,8 @@ Dataset create_extendible(hid_t loc, const std::string& name, const Dims& row_di
   Handle space = dataspace(dims, maxdims);
   Handle dcpl = property_list(H5P_DATASET_CREATE, "cannot create a dataset property list");
   check(H5Pset_chunk(dcpl.id(), static_cast<int>(chunk.size()), chunk.data()), "cannot chunk '" + name + "'");
+  const T zero{};
+  check(H5Pset_fill_value(dcpl.id(), native_type<T>(), &zero), "cannot set the fill value of '" + name + "'");
   if (compression > 0) {
     check(H5Pset_shuffle(dcpl.id()), "cannot shuffle '" + name + "'");
     check(H5Pset_deflate(dcpl.id(), static_cast<unsigned>(compression)), "cannot compress '" + name + "'");
