@@ -48,9 +48,18 @@ double median(std::vector<double> v) {
 core::Vec3 vec3(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
 
 // The camera: a preset framing the rest shape, then any explicit key on top.
-render::Camera make_camera(const RenderArgs& a, const core::Positions& points, CLI::App& cmd) {
-  render::Camera cam = render::frame_points(render::parse_camera_preset(a.camera), points,
-                                            static_cast<double>(a.width) / a.height, a.fov, a.margin);
+// With a colour bar (or legend) at the right edge, the object is framed in the image's
+// left part and the camera moved so that it is centred there.
+render::Camera make_camera(const RenderArgs& a, const core::Positions& points, CLI::App& cmd, bool side_bar) {
+  const double aspect = static_cast<double>(a.width) / a.height;
+  const double reserve = side_bar ? 0.12 : 0.0;  // share of the width kept for the bar
+  render::Camera cam = render::frame_points(render::parse_camera_preset(a.camera), points, aspect * (1 - reserve), a.fov, a.margin);
+  if (reserve > 0) {
+    const core::Vec3 view = cam.target - cam.eye;
+    const double half_width = view.norm() * std::tan(0.5 * cam.fov_deg * M_PI / 180) * aspect;  // at the target, m
+    const core::Vec3 shift = view.cross(cam.up).normalized() * reserve * half_width;
+    cam.target += shift, cam.eye += shift;
+  }
   if (!a.target.empty()) {
     const core::Vec3 shift = vec3(a.target) - cam.target;
     cam.target += shift, cam.eye += shift;
@@ -97,7 +106,8 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
       throw std::invalid_argument("--field activation: scene '" + sc.name + "' has no contraction (try --field displacement)");
     if (a.fit != "rest" && a.fit != "frame") throw std::invalid_argument("--fit '" + a.fit + "': use rest or frame");
     const core::Positions rest_surface = render::surface_points(model.mesh);
-    const render::Camera camera = make_camera(a, rest_surface, cmd);
+    const bool side_bar = !a.no_overlay && rs.field != render::Field::none;
+    const render::Camera camera = make_camera(a, rest_surface, cmd, side_bar);
     const std::vector<int> surface_nodes = model.mesh.boundary_nodes();
 
     if (!a.out_dir.empty() && !a.no_png) {
@@ -159,7 +169,7 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
       if (a.fit == "frame") {  // re-frame on the deformed surface
         core::Positions current(3, static_cast<Eigen::Index>(surface_nodes.size()));
         for (size_t i = 0; i < surface_nodes.size(); ++i) current.col(static_cast<Eigen::Index>(i)) = x.col(surface_nodes[i]);
-        renderer.set_camera(make_camera(a, current, cmd));
+        renderer.set_camera(make_camera(a, current, cmd, side_bar));
       }
       const auto t0 = Clock::now();
       const render::Image& image = renderer.render(frame);
