@@ -9,10 +9,18 @@
 #include "core/static_solver.hpp"
 #include "io/scene.hpp"
 #include "service/commands.hpp"
+#ifdef FIBERFEM_HAVE_ARCHIVE
+#include "service/archive/archive.hpp"
+#endif
+#ifdef FIBERFEM_WITH_DDS
+#include "clients/ctl/client.hpp"
+#endif
 
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <csignal>
+#include <functional>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -35,6 +43,9 @@ struct RenderArgs {
   double fov = 30, until = 0, fps = 0, margin = 0.1;
   int width = 1280, height = 720, every = 1, steps = 0, png_level = 1, supersample = 1, strip_panels = 8, strip_width = 240;
   std::vector<std::string> overrides;
+  std::string run_id;     // --live: the run (default the only one)
+  long live_frames = 0;   // --live: stop after this many frames (0: at --until or Ctrl-C)
+  bool live = false;
   bool fibers = false, no_png = false, time = false, no_overlay = false, force_static = false, last = false, flat = false, vertex_lighting = false;
 };
 
@@ -83,8 +94,290 @@ std::string caption_of(const io::Scene& sc, double t, double fps) {
   return buf;
 }
 
+// One panel of a strip: an owned copy of a state.
+struct Panel {
+  core::Positions x;
+  std::vector<double> activation;
+  double t;
+};
+
+// The strip: panels drawn at twice the panel size and averaged down; two passes so that an
+// automatic colour range covers every panel before any is drawn.
+void write_strip(const RenderArgs& a, const render::RenderSettings& rs, const core::TetMesh& mesh, const std::vector<core::Vec3>& fibers,
+                 bool contracting, const render::Camera& camera, const std::vector<Panel>& panels) {
+  render::RenderSettings ps = rs;
+  ps.width = 2 * a.strip_width;
+  ps.height = std::max(16, static_cast<int>(std::lround(ps.width * static_cast<double>(a.height) / a.width)));
+  ps.colour_bar = false;
+  ps.supersample = 1;
+  ps.font_px = std::max(9, ps.height / 9);
+  render::Renderer strip_renderer(mesh, ps);
+  strip_renderer.set_camera(camera);
+  std::vector<render::Image> images;
+  for (int pass = 0; pass < 2; ++pass)
+    for (const Panel& p : panels) {
+      render::FrameView frame(mesh, p.x);
+      frame.activation = contracting ? &p.activation : nullptr;
+      frame.fibers = &fibers;
+      frame.time_s = p.t;
+      char cap[64];
+      std::snprintf(cap, sizeof cap, "t = %.2f s", p.t);
+      frame.caption = cap;
+      const render::Image& im = strip_renderer.render(frame);
+      if (pass == 1) images.push_back(render::downscale(im, a.strip_width, ps.height / 2));
+    }
+  render::write_png(a.strip, render::hstack(images, 4), 9);
+}
+
+// A source of frames other than a simulation run here: an archive or the live bus.
+struct Feed {
+  std::string name, origin;
+  std::optional<core::TetMesh> mesh;  // the rest mesh (set by the feed's maker)
+  std::vector<core::Vec3> fibers;
+  core::Contraction contraction;  // for activation (normalised by the peaks) and beats
+  bool has_activation = false;
+  double frame_dt_s = 0;          // time between frames (the default video rate), s
+  long total = -1;                // frames, when known (an archive)
+  // The next frame: positions, activation (normalised, may be empty), time, step;
+  // false at the end.
+  std::function<bool(core::Positions&, std::vector<double>&, double&, long&)> next;
+};
+
+volatile std::sig_atomic_t g_render_stop = 0;
+extern "C" void on_render_signal(int) { g_render_stop = 1; }
+
+std::string feed_caption(const Feed& f, double t, double fps) {
+  char buf[256];
+  int n = std::snprintf(buf, sizeof buf, "%s    t = %.3f s", f.name.c_str(), t);
+  if (f.contraction.enabled())
+    n += std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n), "    beat %ld",
+                       static_cast<long>(std::floor(t / f.contraction.period_s + 1e-9)) + 1);
+  if (fps > 0) std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n), "    %.3g fps", fps);
+  return buf;
+}
+
+// Renders a feed: every K-th frame (or the frames nearest --at, or the last), PNG, MP4
+// and a strip of the first beat, as for a scene.
+int render_feed(CLI::App& cmd, RenderArgs& a, Feed& feed) {
+  if (a.out_dir.empty() && !a.no_png) throw std::invalid_argument("--out DIR is required (or --no-png with --mp4 / --strip)");
+  if (a.no_png && a.mp4.empty() && a.strip.empty()) throw std::invalid_argument("--no-png leaves nothing to write: add --mp4 or --strip");
+  if (a.png_level < 0 || a.png_level > 9) throw std::invalid_argument("--png-level " + std::to_string(a.png_level) + " is outside [0, 9]");
+  if (a.last && !a.at.empty()) throw std::invalid_argument("--last and --at exclude each other");
+  if (a.last && feed.total < 0) throw std::invalid_argument("--last needs an archive (a live run has no last frame)");
+  render::RenderSettings rs;
+  rs.width = a.width, rs.height = a.height, rs.supersample = a.supersample, rs.fibers = a.fibers;
+  rs.field = a.field.empty() ? (feed.has_activation ? render::Field::activation : render::Field::displacement) : render::parse_field(a.field);
+  if (!a.range.empty()) rs.range = std::make_pair(a.range[0], a.range[1]);
+  rs.colour_bar = rs.caption = !a.no_overlay;
+  rs.smooth = !a.flat;
+  rs.per_pixel_lighting = !a.vertex_lighting;
+  rs.validate();
+  if (rs.field == render::Field::activation && !feed.has_activation)
+    throw std::invalid_argument("--field activation: " + feed.origin + " has no activation (try --field displacement)");
+  const render::Camera camera = make_camera(a, render::surface_points(*feed.mesh), cmd, !a.no_overlay && rs.field != render::Field::none);
+  if (!a.out_dir.empty() && !a.no_png) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.out_dir, ec);
+    if (ec || access(a.out_dir.c_str(), W_OK) != 0)
+      throw std::runtime_error("--out " + a.out_dir + ": cannot create or write the directory" + (ec ? ": " + ec.message() : ""));
+  }
+  const double fps = a.fps > 0 ? a.fps : std::clamp(1.0 / (a.every * std::max(feed.frame_dt_s, 1e-6)), 1.0, 240.0);
+  render::Renderer renderer((*feed.mesh), rs);
+  renderer.set_camera(camera);
+  std::unique_ptr<render::VideoWriter> video;
+  if (!a.mp4.empty()) {
+    render::VideoSettings vs;
+    vs.path = a.mp4, vs.width = a.width, vs.height = a.height, vs.fps = fps;
+    video = std::make_unique<render::VideoWriter>(vs);
+  }
+  const double strip_span = feed.contraction.enabled() ? feed.contraction.period_s : HUGE_VAL;
+  std::vector<Panel> panels;
+  int next_panel = 0;
+  std::vector<double> at = a.at;
+  std::sort(at.begin(), at.end());
+  size_t next_at = 0;
+  std::cout << "fiberfem render: " << feed.origin << " (scene '" << feed.name << "'), " << (*feed.mesh).num_nodes() << " nodes, field "
+            << render::to_string(rs.field) << ", " << a.width << "x" << a.height << ", every " << a.every << " frames, "
+            << renderer.describe() << "\n" << std::flush;
+  const bool tty = isatty(fileno(stderr)) != 0;
+  g_render_stop = 0;
+  auto old_int = std::signal(SIGINT, on_render_signal);
+  core::Positions x;
+  std::vector<double> act;
+  double t = 0, t_first = -1;
+  long step = 0, index = -1, frames = 0;
+  const auto t_run = Clock::now();
+  while (!g_render_stop && feed.next(x, act, t, step)) {
+    ++index;
+    if (t_first < 0) t_first = t;
+    if (!a.strip.empty() && next_panel < a.strip_panels && strip_span < HUGE_VAL &&
+        t - t_first + 0.5 * feed.frame_dt_s >= next_panel * strip_span / a.strip_panels) {
+      panels.push_back({x, act, t});
+      ++next_panel;
+    }
+    if (a.no_png && !video) continue;
+    if (!at.empty()) {
+      bool wanted = false;
+      while (next_at < at.size() && t + 0.5 * feed.frame_dt_s >= at[next_at]) ++next_at, wanted = true;
+      if (!wanted) continue;
+    } else if (a.last ? index != feed.total - 1 : index % a.every != 0) {
+      continue;
+    }
+    render::FrameView frame((*feed.mesh), x);
+    frame.activation = act.empty() ? nullptr : &act;
+    frame.fibers = &feed.fibers;
+    frame.time_s = t;
+    frame.caption = feed_caption(feed, t, at.empty() && !a.last ? fps : 0.0);
+    const render::Image& image = renderer.render(frame);
+    if (!a.no_png) {
+      char name[64];
+      std::snprintf(name, sizeof name, "/frame-%05ld.png", frames);
+      render::write_png(a.out_dir + name, image, a.png_level);
+    }
+    if (video) video->write(image);
+    ++frames;
+    if (tty) {
+      std::fprintf(stderr, "\rrender: frame %ld  t = %.3f s  %.1f frames/s\033[K", frames, t, frames / std::max(1e-9, since(t_run)));
+      std::fflush(stderr);
+    }
+  }
+  std::signal(SIGINT, old_int);
+  if (tty) std::fprintf(stderr, "\n");
+  if (video) video->close();
+  if (!a.strip.empty()) {
+    if (panels.size() < static_cast<size_t>(a.strip_panels))
+      throw std::runtime_error("--strip: " + feed.origin + " holds " + std::to_string(panels.size()) + " of " +
+                               std::to_string(a.strip_panels) + " panels of a beat (a beat is longer than the frames, or no contraction)");
+    write_strip(a, rs, (*feed.mesh), feed.fibers, feed.has_activation, renderer.camera(), panels);
+  }
+  std::printf("render: %ld frames in %.1f s", frames, since(t_run));
+  if (!a.no_png) std::printf(", PNG frames in %s/frame-NNNNN.png", a.out_dir.c_str());
+  if (video) std::printf(", video %s (%ld frames at %.3g fps)", a.mp4.c_str(), video->frames(), fps);
+  if (!a.strip.empty()) std::printf(", strip %s (%zu panels)", a.strip.c_str(), panels.size());
+  std::printf("\n");
+  return frames > 0 ? 0 : 1;
+}
+
+#ifdef FIBERFEM_HAVE_ARCHIVE
+// An archive: the mesh, fibers and regions from its header; the contraction (for the
+// activation's normalisation and the beat count) from its scene text when that parses.
+int render_archive(CLI::App& cmd, RenderArgs& a) {
+  auto reader = std::make_shared<archive::ArchiveReader>(a.scene_file);
+  const archive::ArchiveHeader& h = reader->header();
+  Feed f;
+  f.name = h.scene_name;
+  f.origin = "archive " + a.scene_file;
+  f.mesh.emplace(h.rest_positions, h.tets, h.regions);
+  f.fibers = h.fibers;
+  try {
+    f.contraction = io::parse_scene(h.scene_yaml, "archive:" + a.scene_file, h.scene_base_dir).model.contraction;
+  } catch (const std::exception& e) {
+    std::cerr << "fiberfem render: the archived scene does not parse here (" << e.what()
+              << "); activation is shown relative to each frame's largest\n";
+  }
+  f.total = reader->frames();
+  if (f.total == 0) throw std::runtime_error(a.scene_file + ": the archive has no frames");
+  const std::vector<double> times = reader->times();
+  f.frame_dt_s = f.total > 1 ? (times.back() - times.front()) / static_cast<double>(f.total - 1) : h.dt_s;
+  // Activation when the scene contracts, or (its text not parsing here) when the last frame
+  // has any (an archive stores zeros without a contraction).
+  const std::vector<double> last_act = reader->frame(f.total - 1).activation_pa;
+  f.has_activation = f.contraction.enabled() || std::any_of(last_act.begin(), last_act.end(), [](double v) { return v > 0; });
+  long i = 0;
+  const long stop = a.until > 0 ? static_cast<long>(std::upper_bound(times.begin(), times.end(), a.until + 1e-9) - times.begin()) : f.total;
+  f.next = [reader, &f, i, stop](core::Positions& x, std::vector<double>& act, double& t, long& step) mutable {
+    if (i >= stop) return false;
+    const archive::Frame fr = reader->frame(i++);
+    x = fr.positions;
+    t = fr.time_s, step = fr.step;
+    if (f.contraction.enabled()) {
+      act = render::activation_from_tension(f.contraction, f.mesh->regions(), fr.activation_pa);
+    } else {
+      act = fr.activation_pa;
+      const double peak = act.empty() ? 0.0 : *std::max_element(act.begin(), act.end());
+      for (double& v : act) v = peak > 0 ? v / peak : 0.0;
+    }
+    return true;
+  };
+  return render_feed(cmd, a, f);
+}
+#endif
+
+#ifdef FIBERFEM_WITH_DDS
+// The live bus: the run's topology, then the newest state each time (the service never
+// waits for the renderer: states it publishes while a frame is drawn are skipped).
+int render_live(CLI::App& cmd, RenderArgs& a) {
+  using namespace std::chrono_literals;
+  auto client = std::make_shared<clients::Client>();
+  const std::string run = client->resolve_run(a.run_id, 20s);
+  const auto topo = client->topology(run, 20s);
+  if (!topo) throw std::runtime_error("no topology from run '" + run + "'");
+  Feed f;
+  f.name = topo->scene_name;
+  f.origin = "run " + run + (topo->replay ? " (replay)" : "");
+  core::Positions rest(3, topo->num_nodes);
+  for (unsigned n = 0; n < topo->num_nodes; ++n)
+    for (int d = 0; d < 3; ++d) rest(d, n) = topo->rest_positions[3 * n + d];
+  std::vector<core::Tet> tets(topo->num_elements);
+  for (unsigned e = 0; e < topo->num_elements; ++e)
+    for (int k = 0; k < 4; ++k) tets[e][static_cast<size_t>(k)] = topo->tets[4 * e + k];
+  f.mesh.emplace(rest, tets, topo->element_regions);
+  for (unsigned e = 0; e < topo->num_elements; ++e) f.fibers.emplace_back(topo->fibers[3 * e], topo->fibers[3 * e + 1], topo->fibers[3 * e + 2]);
+  const auto st = client->status(run, 10s);
+  if (st && st->heart_rate_bpm > 0) {  // beats in the caption and the strip
+    f.contraction.period_s = 60.0 / st->heart_rate_bpm;
+    f.contraction.region_peak_pa.assign(static_cast<size_t>(f.mesh->num_regions()), 1.0);
+  }
+  f.has_activation = st && st->heart_rate_bpm > 0;
+  f.frame_dt_s = st && st->dt_s > 0 ? st->dt_s : 1.0 / 30;
+  auto skipped = std::make_shared<long>(0);
+  long last = -1, shown = 0;
+  const auto state_nodes = topo->state_nodes;
+  const double until = a.until;
+  const long max_frames = a.live_frames;
+  f.next = [client, run, rest, state_nodes, last, shown, until, max_frames, skipped](core::Positions& x, std::vector<double>& act, double& t,
+                                                                                   long& step) mutable {
+    if (max_frames > 0 && shown >= max_frames) return false;
+    const auto s = client->next_state(run, 10s, last);
+    if (!s) return false;  // the run stopped publishing
+    if (last >= 0 && static_cast<long>(s->frame) > last + 1) *skipped += static_cast<long>(s->frame) - last - 1;
+    last = static_cast<long>(s->frame);
+    x = rest;
+    if (state_nodes.empty()) {
+      for (Eigen::Index i = 0; i < x.size() && static_cast<size_t>(i) < s->positions.size(); ++i) x.data()[i] = s->positions[static_cast<size_t>(i)];
+    } else {
+      for (size_t k = 0; k < state_nodes.size(); ++k)
+        for (int d = 0; d < 3; ++d) x(d, state_nodes[k]) = s->positions[3 * k + d];
+    }
+    act.assign(s->activation.begin(), s->activation.end());
+    t = s->time_s, step = static_cast<long>(s->frame);
+    ++shown;
+    return until <= 0 || t <= until + 1e-9;
+  };
+  const int rc = render_feed(cmd, a, f);
+  std::printf("render: %ld published frames skipped while drawing (the service never waits for the renderer)\n", *skipped);
+  return rc;
+}
+#endif
+
 int render_command(CLI::App& cmd, RenderArgs& a) {
   try {
+    if (a.live) {
+#ifdef FIBERFEM_WITH_DDS
+      if (!a.scene_file.empty()) throw std::invalid_argument("--live renders a running service: give no scene or archive");
+      return render_live(cmd, a);
+#else
+      throw std::invalid_argument("--live: this fiberfem was built without DDS");
+#endif
+    }
+    if (a.scene_file.empty()) throw std::invalid_argument("give a scene file, an archive (RUN.h5) or --live");
+    if (a.scene_file.size() > 3 && a.scene_file.substr(a.scene_file.size() - 3) == ".h5") {
+#ifdef FIBERFEM_HAVE_ARCHIVE
+      return render_archive(cmd, a);
+#else
+      throw std::invalid_argument(a.scene_file + ": this fiberfem was built without HDF5, it cannot read archives");
+#endif
+    }
     if (a.out_dir.empty() && !a.no_png) throw std::invalid_argument("--out DIR is required (or --no-png with --mp4 / --strip)");
     if (a.no_png && a.mp4.empty() && a.strip.empty()) throw std::invalid_argument("--no-png leaves nothing to write: add --mp4 or --strip");
     if (a.png_level < 0 || a.png_level > 9) throw std::invalid_argument("--png-level " + std::to_string(a.png_level) + " is outside [0, 9]");
@@ -142,7 +435,6 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     if (!a.strip.empty() && steps * dt < strip_span * (1 - 1.0 / a.strip_panels) - 0.5 * dt)
       throw std::invalid_argument("--strip: the run (" + std::to_string(steps * dt) + " s) is shorter than one beat (" +
                                   std::to_string(strip_span) + " s); raise --until");
-    struct Panel { core::Positions x; std::vector<double> activation; double t; };
     std::vector<Panel> panels;
     int next_panel = 0;
 
@@ -238,32 +530,7 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     if (tty) std::fprintf(stderr, "\n");
     if (video) video->close();
 
-    if (!a.strip.empty()) {
-      // Panels drawn at twice the panel size and averaged down; two passes so that an
-      // automatic colour range covers every panel before any is drawn.
-      render::RenderSettings ps = rs;
-      ps.width = 2 * a.strip_width;
-      ps.height = std::max(16, static_cast<int>(std::lround(ps.width * static_cast<double>(a.height) / a.width)));
-      ps.colour_bar = false;
-      ps.supersample = 1;
-      ps.font_px = std::max(9, ps.height / 9);
-      render::Renderer strip_renderer(model.mesh, ps);
-      strip_renderer.set_camera(renderer.camera());
-      std::vector<render::Image> images;
-      for (int pass = 0; pass < 2; ++pass)
-        for (const Panel& p : panels) {
-          render::FrameView frame(model.mesh, p.x);
-          frame.activation = contracting ? &p.activation : nullptr;
-          frame.fibers = &model.fibers;
-          frame.time_s = p.t;
-          char cap[64];
-          std::snprintf(cap, sizeof cap, "t = %.2f s", p.t);
-          frame.caption = cap;
-          const render::Image& im = strip_renderer.render(frame);
-          if (pass == 1) images.push_back(render::downscale(im, a.strip_width, ps.height / 2));
-        }
-      render::write_png(a.strip, render::hstack(images, 4), 9);
-    }
+    if (!a.strip.empty()) write_strip(a, rs, model.mesh, model.fibers, contracting, renderer.camera(), panels);
 
     std::printf("render: %ld frames in %.1f s", frames, since(t_run));
     if (!a.no_png) std::printf(", PNG frames in %s/frame-NNNNN.png", a.out_dir.c_str());
@@ -290,7 +557,10 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
 void add_render_command(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand("render", "Simulate a scene and render it off-screen to PNG frames and MP4 (docs/rendering.md)");
   auto a = std::make_shared<RenderArgs>();
-  cmd->add_option("scene", a->scene_file, "Scene file (YAML, docs/scenes.md)")->required();
+  cmd->add_option("scene", a->scene_file, "Scene file (YAML, docs/scenes.md) to simulate, or a run archive RUN.h5 to draw");
+  cmd->add_flag("--live", a->live, "Render a running service from the bus (the newest state each time; see --run, --frames)");
+  cmd->add_option("--run", a->run_id, "With --live: the run id (default: the only run on the domain)");
+  cmd->add_option("--frames", a->live_frames, "With --live: stop after this many frames (default: at --until or Ctrl-C)")->check(CLI::PositiveNumber);
   cmd->add_option("--out", a->out_dir, "Directory for the PNG frames (created)");
   cmd->add_option("--field", a->field, "activation | fiber_strain | displacement | region | none (default: activation if the scene contracts, else displacement)");
   cmd->add_option("--camera", a->camera, "Preset: front | back | left | right | top | iso, framing the rest surface")->capture_default_str();

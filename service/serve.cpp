@@ -174,6 +174,7 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
   double pace_sim = rc.simulator().time_s();
   bool state_dirty = true;
 
+  auto t_plain_status = t_start;
   auto publish_status = [&](const std::string& state) {
     const auto now = Clock::now();
     const double wall = std::max(1e-9, seconds_between(t_period, now));
@@ -213,10 +214,18 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
 #endif
     bus->publish_status(st);
     if (options.status_line) {
-      std::fprintf(stderr, "\r%-8s t=%8.3f s  frame %7ld  %6.1f steps/s  x%.2f real time  step %.2f ms  iters %3d  v%u   ",
+      std::fprintf(stderr, "\r%-8s t=%8.3f s  frame %7ld  %6.1f steps/s  x%.2f real time  step %.2f ms  iters %3d  v%u%s%s   ",
                    state.c_str(), sim.time_s(), sim.step_count(), st.frames_per_second, st.real_time_factor, st.step_ms,
-                   last.solver_iterations, rc.parameter_version());
+                   last.solver_iterations, rc.parameter_version(), st.recording.empty() ? "" : "  rec ",
+                   st.recording.empty() ? "" : (std::to_string(st.recorded_frames) + " frames").c_str());
       std::fflush(stderr);
+    } else if (seconds_between(t_plain_status, now) >= 1.0) {  // not a terminal: a plain line a second
+      char line[256];
+      std::snprintf(line, sizeof line, "status: %s t=%.3f s frame %ld, %.1f steps/s, x%.2f real time, step %.2f ms, %d iterations%s%s\n",
+                    state.c_str(), sim.time_s(), sim.step_count(), st.frames_per_second, st.real_time_factor, st.step_ms,
+                    last.solver_iterations, st.recording.empty() ? "" : ", recording ", st.recording.c_str());
+      out << line << std::flush;
+      t_plain_status = now;
     }
     step_ms.clear(), rot_ms.clear(), asm_ms.clear(), solve_ms.clear(), pub_ms.clear();
     steps_in_period = 0;

@@ -5,6 +5,9 @@
 #include "clients/ctl/client.hpp"
 #include "process_support.hpp"
 #include "service/archive/archive.hpp"
+#if defined(FIBERFEM_HAVE_RENDER)
+#include "clients/render/png_io.hpp"
+#endif
 
 #include <gtest/gtest.h>
 
@@ -172,3 +175,65 @@ TEST_F(Replay, ServeResumesFromACheckpointBitForBit) {
 
 }  // namespace
 }  // namespace fiberfem::testing
+
+#if defined(FIBERFEM_HAVE_RENDER)
+namespace fiberfem::testing {
+namespace {
+
+// Share of pixels that differ by more than `tol` in any channel.
+double differing(const render::Image& a, const render::Image& b, int tol) {
+  if (a.width != b.width || a.height != b.height) return 1.0;
+  long n = 0;
+  for (size_t i = 0; i < a.rgba.size(); i += 4)
+    for (int c = 0; c < 3; ++c)
+      if (std::abs(int(a.rgba[i + c]) - int(b.rgba[i + c])) > tol) {
+        ++n;
+        break;
+      }
+  return static_cast<double>(n) / (a.rgba.size() / 4.0);
+}
+
+// The renderer drawing an archive shows what it draws when it simulates the scene itself
+// (two paths: archived float32 positions against the simulator's own).
+TEST_F(Replay, RenderingAnArchiveMatchesRenderingTheSceneItself) {
+  const std::string scene = std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/demo-cantilever.yaml";
+  const std::string h5 = dir_.file("beam.h5");
+  ASSERT_EQ(run_process({FIBERFEM_BIN, "run", scene, "--steps", "30", "--archive", h5}).exit_code, 0);
+  const ProcessResult from_archive = run_process({FIBERFEM_BIN, "render", h5, "--out", dir_.file("a"), "--last", "--width", "320",
+                                                  "--height", "180", "--no-overlay"});
+  ASSERT_EQ(from_archive.exit_code, 0) << from_archive.output;
+  const ProcessResult from_scene = run_process({FIBERFEM_BIN, "render", scene, "--steps", "30", "--out", dir_.file("s"), "--last",
+                                                "--width", "320", "--height", "180", "--no-overlay"});
+  ASSERT_EQ(from_scene.exit_code, 0) << from_scene.output;
+  const render::Image a = render::read_png(dir_.file("a/frame-00000.png"));
+  const render::Image s = render::read_png(dir_.file("s/frame-00000.png"));
+  EXPECT_LT(differing(a, s, 24), 0.005);
+  // ... and not the rest shape: the first archived frame differs visibly.
+  ASSERT_EQ(run_process({FIBERFEM_BIN, "render", h5, "--out", dir_.file("r"), "--at", "0", "--width", "320", "--height", "180",
+                         "--no-overlay"}).exit_code, 0);
+  EXPECT_GT(differing(render::read_png(dir_.file("r/frame-00000.png")), a, 24), 0.01);
+}
+
+// Rendering live from the bus: frames of a running service, its newest state each time.
+TEST_F(Replay, RenderingLiveFromTheBusDrawsTheRunningService) {
+  const std::string run = unique("live");
+  BackgroundProcess service({FIBERFEM_BIN, "serve", "--builtin", "cantilever", "--run-id", run}, dir_.file("serve.log"));
+  Client client;
+  ASSERT_EQ(client.resolve_run(run, 20s), run) << service.output();
+  const ProcessResult live = run_process({"timeout", "120", FIBERFEM_BIN, "render", "--live", "--run", run, "--frames", "6", "--out",
+                                          dir_.file("live"), "--width", "320", "--height", "180", "--no-overlay"});
+  ASSERT_EQ(live.exit_code, 0) << live.output;
+  EXPECT_NE(live.output.find("skipped while drawing"), std::string::npos) << live.output;
+  for (int i = 0; i < 6; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "/frame-%05d.png", i);
+    EXPECT_TRUE(std::filesystem::exists(dir_.file("live") + name)) << name;
+  }
+  // The beam falls under gravity from rest: the first and last frames differ.
+  EXPECT_GT(differing(render::read_png(dir_.file("live/frame-00000.png")), render::read_png(dir_.file("live/frame-00005.png")), 24), 0.002);
+  EXPECT_TRUE(service.running());
+}
+
+}  // namespace
+}  // namespace fiberfem::testing
+#endif
