@@ -105,6 +105,16 @@ std::vector<std::string> names_attribute(hid_t obj, const std::string& name) {
 
 }  // namespace
 
+namespace {
+void write_atomically(const std::string& path, const std::string& text);
+std::string sidecar_path(const std::string& h5_path);
+}  // namespace
+
+namespace detail {
+std::string xdmf_text(const std::string& h5_path, long F, const std::vector<double>& times, hsize_t N, hsize_t E, bool velocities,
+                      bool displacement);
+}  // namespace detail
+
 namespace detail {
 
 struct WriterFile {
@@ -120,6 +130,10 @@ struct WriterFile {
   std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
   double next_checkpoint_s = 0;
   std::string parameter_state = "{}";  // for the periodic checkpoints (set_parameter_state)
+  std::vector<double> times;           // of the recorded frames (the sidecar's)
+  std::chrono::steady_clock::time_point last_sidecar{};  // when the sidecar was last rewritten
+  double sidecar_cost_s = 0;           // how long that took
+  long sidecar_frames = 0;             // frames it lists
   long last_checkpoint_step = -1;         // the last checkpoint's step, state and parameters
   Eigen::VectorXd last_checkpoint_x, last_checkpoint_v;
   std::string last_checkpoint_params;
@@ -363,6 +377,7 @@ void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepRep
   w.step.append(&step, 1);  // last: the frame is complete
   ++w.frames;
   ++w.since_flush;
+  w.times.push_back(r.time_s);
   if (w.o.checkpoint_every_s > 0 && sim.time_s() >= w.next_checkpoint_s - 1e-9) {
     checkpoint(sim, w.parameter_state);
     while (w.next_checkpoint_s <= sim.time_s() + 1e-9) w.next_checkpoint_s += w.o.checkpoint_every_s;
@@ -466,6 +481,21 @@ void ArchiveWriter::flush() {
   w.file.flush();
   w.since_flush = 0;
   w.last_flush = std::chrono::steady_clock::now();
+  // The sidecar follows the flushed frames, rewritten at most every 5 s and at most a
+  // tenth of the time (it grows with the run): ParaView opens a live run's flushed part.
+  const double since_sidecar = std::chrono::duration<double>(w.last_flush - w.last_sidecar).count();
+  if (w.frames > w.sidecar_frames && (w.sidecar_frames == 0 || since_sidecar >= std::max(5.0, 10 * w.sidecar_cost_s))) {
+    try {
+      const auto t0 = std::chrono::steady_clock::now();
+      write_atomically(sidecar_path(w.o.path), detail::xdmf_text(w.o.path, w.frames, w.times, static_cast<hsize_t>(w.nn),
+                                                                 static_cast<hsize_t>(w.ne), w.o.velocities, w.o.displacement));
+      w.last_sidecar = std::chrono::steady_clock::now();
+      w.sidecar_cost_s = std::chrono::duration<double>(w.last_sidecar - t0).count();
+      w.sidecar_frames = w.frames;
+    } catch (const std::exception&) {
+      // The sidecar is a convenience: close() and recover rewrite it; recording goes on.
+    }
+  }
 }
 
 void ArchiveWriter::close() {
@@ -774,20 +804,10 @@ std::string sidecar_path(const std::string& h5_path) {
 
 }  // namespace
 
-void write_xdmf(const std::string& h5_path) {
-  long F = 0;
-  std::vector<double> times;
-  bool velocities = false, displacement = false;
-  hsize_t N = 0, E = 0;
-  {
-    ArchiveReader r(h5_path, /*follow=*/true);
-    F = r.frames();
-    times = r.times();
-    velocities = r.header().has_velocities;
-    displacement = r.header().has_displacement;
-    N = static_cast<hsize_t>(r.header().rest_positions.cols());
-    E = r.header().tets.size();
-  }
+namespace detail {
+// The sidecar's text for F frames (their times) of an archive of N nodes and E elements.
+std::string xdmf_text(const std::string& h5_path, long F, const std::vector<double>& times, hsize_t N, hsize_t E, bool velocities,
+                      bool displacement) {
   const std::string file = std::filesystem::path(h5_path).filename().string();
   const std::string n = std::to_string(N), e = std::to_string(E), f = std::to_string(F);
   std::ostringstream x;
@@ -825,7 +845,26 @@ void write_xdmf(const std::string& h5_path) {
       << "</Grid>\n";
   }
   x << "</Grid>\n</Domain>\n</Xdmf>\n";
-  write_atomically(sidecar_path(h5_path), x.str());
+  return x.str();
+}
+
+}  // namespace detail
+
+void write_xdmf(const std::string& h5_path) {
+  long F = 0;
+  std::vector<double> times;
+  bool velocities = false, displacement = false;
+  hsize_t N = 0, E = 0;
+  {
+    ArchiveReader r(h5_path, /*follow=*/true);
+    F = r.frames();
+    times = r.times();
+    velocities = r.header().has_velocities;
+    displacement = r.header().has_displacement;
+    N = static_cast<hsize_t>(r.header().rest_positions.cols());
+    E = r.header().tets.size();
+  }
+  write_atomically(sidecar_path(h5_path), detail::xdmf_text(h5_path, F, times, N, E, velocities, displacement));
 }
 
 long recover(const std::string& h5_path) {

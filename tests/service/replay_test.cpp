@@ -125,6 +125,10 @@ TEST_F(Replay, RecordingStartsAndStopsByCommandAndARestoreStartsTheNextFile) {
     FAIL() << "the status never showed " << n << " recorded frames";
   };
   wait_recorded(10);
+  // The sidecar follows a live recording (ParaView can open what is flushed so far).
+  const std::string sidecar = read_file(dir_.file("live.xdmf"));
+  EXPECT_NE(sidecar.find("<Xdmf"), std::string::npos);
+  EXPECT_NE(sidecar.find("Name=\"frame 0\""), std::string::npos) << sidecar.substr(0, 500);
   const clients::Ack restored = client.send(run, "restore", "{}");
   ASSERT_TRUE(restored.accepted) << restored.reason;
   EXPECT_NE(restored.reason.find("live-2.h5"), std::string::npos) << restored.reason;
