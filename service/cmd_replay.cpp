@@ -24,6 +24,7 @@ void add_replay_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--from", o->from_s, "Start at this time, s")->check(CLI::NonNegativeNumber);
   cmd->add_flag("--exit-at-end", o->exit_at_end, "Exit after the last frame (unless looping)");
   cmd->add_flag("--follow", o->follow, "Follow an archive still being written (SWMR)");
+  cmd->add_flag("--every-frame", o->every_frame, "Publish every frame, never skip to the newest due one (slower than --rate when behind)");
   cmd->add_option("--status-hz", o->status_hz, "Status publish rate, 1/s")->check(CLI::Range(1e-3, 100.0))->capture_default_str();
   cmd->callback([o, &exit_code] {
     o->status_line = isatty(fileno(stderr)) != 0;

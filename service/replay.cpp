@@ -120,7 +120,7 @@ int replay(const ReplayOptions& options, std::ostream& out) {
   double rate = options.rate;
   long ordered_steps = 0;
   unsigned version = 0;
-  long published = -1;
+  long published = -1, published_count = 0;
   std::vector<float> pos, act;
 
   out << "fiberfem replay: run '" << run_id << "' from " << options.path << " (scene '" << h.scene_name << "', " << times.size()
@@ -138,6 +138,7 @@ int replay(const ReplayOptions& options, std::ostream& out) {
     }
     bus->publish_state(static_cast<unsigned long>(f.step), f.time_s, version, pos, act);
     published = i;
+    ++published_count;
   };
 
   // Commands: the service's run controls plus seek, rate and loop (docs/replay.md).
@@ -209,6 +210,7 @@ int replay(const ReplayOptions& options, std::ostream& out) {
 
   g_replay_signal = 0;
   auto old_int = std::signal(SIGINT, on_replay_signal), old_term = std::signal(SIGTERM, on_replay_signal);
+  const auto t_begin = Clock::now();
   auto t_last = Clock::now(), t_status = Clock::now() - std::chrono::hours(1), t_state = Clock::now();
   long frames_in_period = 0;
   std::string stop = "shut down by command";
@@ -227,7 +229,12 @@ int replay(const ReplayOptions& options, std::ostream& out) {
     const long last = static_cast<long>(times.size()) - 1;
     if (!paused && last >= 0) {
       clock_s += rate * dt_wall;
-      while (index < last && times[static_cast<size_t>(index) + 1] <= clock_s + 1e-12) ++index;
+      if (options.every_frame) {  // at most one frame on per iteration; the clock waits for it
+        if (index < last && times[static_cast<size_t>(index) + 1] <= clock_s + 1e-12) ++index;
+        clock_s = std::min(clock_s, index < last ? times[static_cast<size_t>(index) + 1] : clock_s);
+      } else {
+        while (index < last && times[static_cast<size_t>(index) + 1] <= clock_s + 1e-12) ++index;
+      }
     } else if (paused && ordered_steps > 0 && index < last) {
       ++index, --ordered_steps;
       clock_s = times[static_cast<size_t>(index)];
@@ -285,7 +292,9 @@ int replay(const ReplayOptions& options, std::ostream& out) {
   std::signal(SIGINT, old_int);
   std::signal(SIGTERM, old_term);
   if (options.status_line) std::fprintf(stderr, "\n");
-  out << "fiberfem replay: " << stop << "\n";
+  const double wall_s = std::chrono::duration<double>(Clock::now() - t_begin).count();
+  out << "fiberfem replay: " << stop << "; " << published_count << " frames published in " << wall_s << " s ("
+      << static_cast<double>(published_count) / std::max(wall_s, 1e-9) << " frames/s)\n";
   return 0;
 }
 

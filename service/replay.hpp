@@ -18,6 +18,9 @@ struct ReplayOptions {
   double from_s = 0.0;        ///< Start at the first frame at or after this time, s. Default 0.
   bool exit_at_end = false;   ///< Exit after the last frame (not looping). Default: keep serving.
   bool follow = false;        ///< Follow a file still being written (SWMR): wait for new frames at the end.
+  /// Publish every frame in order even when behind the clock (then the replay runs slower
+  /// than `rate`); default: skip to the newest due frame, as a live run would.
+  bool every_frame = false;
   double status_hz = 2.0;     ///< Status rate, 1/s, in (0, 100]. Default 2.
   bool status_line = false;   ///< Redraw one status line on stderr.
   /// @throws std::invalid_argument naming the field.
