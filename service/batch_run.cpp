@@ -288,10 +288,7 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
     if (!o.resume_path.empty()) {
 #ifdef FIBERFEM_HAVE_ARCHIVE
       const archive::ArchiveReader from(o.resume_path);
-      const size_t k = o.resume_time_s < HUGE_VAL ? from.checkpoint_at_or_before(o.resume_time_s) : [&] {
-        if (from.checkpoints().empty()) throw std::invalid_argument("'" + o.resume_path + "' has no checkpoint to resume from");
-        return from.checkpoints().size() - 1;
-      }();
+      const size_t k = from.checkpoint_at_or_before(o.resume_time_s);  // inf: the last
       sim.restore(from.read_checkpoint(k));
       first_step = static_cast<int>(sim.step_count()) + 1;
       std::snprintf(line, sizeof line, "resume: from %s, checkpoint at t = %.6g s (step %ld)\n", o.resume_path.c_str(),

@@ -94,6 +94,23 @@ std::string caption_of(const io::Scene& sc, double t, double fps) {
   return buf;
 }
 
+// Creates --out (when PNG frames are written) or says why it cannot.
+void prepare_out_dir(const RenderArgs& a) {
+  if (a.out_dir.empty() || a.no_png) return;
+  std::error_code ec;
+  std::filesystem::create_directories(a.out_dir, ec);
+  if (ec || access(a.out_dir.c_str(), W_OK) != 0)
+    throw std::runtime_error("--out " + a.out_dir + ": cannot create or write the directory" + (ec ? ": " + ec.message() : ""));
+}
+
+// The MP4 writer when --mp4 is given.
+std::unique_ptr<render::VideoWriter> make_video(const RenderArgs& a, double fps) {
+  if (a.mp4.empty()) return nullptr;
+  render::VideoSettings vs;
+  vs.path = a.mp4, vs.width = a.width, vs.height = a.height, vs.fps = fps;
+  return std::make_unique<render::VideoWriter>(vs);
+}
+
 // One panel of a strip: an owned copy of a state.
 struct Panel {
   core::Positions x;
@@ -175,21 +192,11 @@ int render_feed(CLI::App& cmd, RenderArgs& a, Feed& feed) {
   if (rs.field == render::Field::activation && !feed.has_activation)
     throw std::invalid_argument("--field activation: " + feed.origin + " has no activation (try --field displacement)");
   const render::Camera camera = make_camera(a, render::surface_points(*feed.mesh), cmd, !a.no_overlay && rs.field != render::Field::none);
-  if (!a.out_dir.empty() && !a.no_png) {
-    std::error_code ec;
-    std::filesystem::create_directories(a.out_dir, ec);
-    if (ec || access(a.out_dir.c_str(), W_OK) != 0)
-      throw std::runtime_error("--out " + a.out_dir + ": cannot create or write the directory" + (ec ? ": " + ec.message() : ""));
-  }
+  prepare_out_dir(a);
   const double fps = a.fps > 0 ? a.fps : std::clamp(1.0 / (a.every * std::max(feed.frame_dt_s, 1e-6)), 1.0, 240.0);
   render::Renderer renderer((*feed.mesh), rs);
   renderer.set_camera(camera);
-  std::unique_ptr<render::VideoWriter> video;
-  if (!a.mp4.empty()) {
-    render::VideoSettings vs;
-    vs.path = a.mp4, vs.width = a.width, vs.height = a.height, vs.fps = fps;
-    video = std::make_unique<render::VideoWriter>(vs);
-  }
+  std::unique_ptr<render::VideoWriter> video = make_video(a, fps);
   const double strip_span = feed.contraction.enabled() ? feed.contraction.period_s : HUGE_VAL;
   std::vector<Panel> panels;
   int next_panel = 0;
@@ -403,12 +410,7 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     const render::Camera camera = make_camera(a, rest_surface, cmd, side_bar);
     const std::vector<int> surface_nodes = model.mesh.boundary_nodes();
 
-    if (!a.out_dir.empty() && !a.no_png) {
-      std::error_code ec;
-      std::filesystem::create_directories(a.out_dir, ec);
-      if (ec || access(a.out_dir.c_str(), W_OK) != 0)
-        throw std::runtime_error("--out " + a.out_dir + ": cannot create or write the directory" + (ec ? ": " + ec.message() : ""));
-    }
+    prepare_out_dir(a);
 
     const double dt = sc.settings.dt_s;
     std::vector<double> at = a.at;  // --at: render only the steps nearest these times
@@ -423,12 +425,7 @@ int render_command(CLI::App& cmd, RenderArgs& a) {
     core::Simulator sim(model, sc.settings);
     render::Renderer renderer(model.mesh, rs);
     renderer.set_camera(camera);
-    std::unique_ptr<render::VideoWriter> video;
-    if (!a.mp4.empty()) {
-      render::VideoSettings vs;
-      vs.path = a.mp4, vs.width = a.width, vs.height = a.height, vs.fps = fps;
-      video = std::make_unique<render::VideoWriter>(vs);
-    }
+    std::unique_ptr<render::VideoWriter> video = make_video(a, fps);
     // The strip: N panels evenly over one beat (the first; the whole run without a
     // contraction), captured as owned copies and drawn at the end with one colour range.
     const double strip_span = contracting ? model.contraction.period_s : steps * dt;

@@ -87,10 +87,7 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     // The archived checkpoint and the parameters it ran with (a served run's checkpoints
     // carry the running scene and forces; a batch run's, none: the archived scene).
     const archive::ArchiveReader from(options.resume_path);
-    const size_t k = options.resume_time_s < HUGE_VAL ? from.checkpoint_at_or_before(options.resume_time_s) : [&] {
-      if (from.checkpoints().empty()) throw std::invalid_argument("'" + options.resume_path + "' has no checkpoint to resume from");
-      return from.checkpoints().size() - 1;
-    }();
+    const size_t k = from.checkpoint_at_or_before(options.resume_time_s);  // inf: the last
     std::string params;
     const core::SimulatorCheckpoint cp = from.read_checkpoint(k, &params);
     if (params.find("scene_yaml") != std::string::npos) rc.restore_parameter_state(params);

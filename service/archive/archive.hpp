@@ -184,7 +184,7 @@ class ArchiveReader {
   std::vector<CommandRecord> commands() const;
   /// Every complete checkpoint, in order (refreshed when following).
   std::vector<CheckpointInfo> checkpoints() const;
-  /// Index of the last checkpoint at or before `time_s` (with 1e-9 s slack).
+  /// Index of the last checkpoint at or before `time_s` (with 1e-9 s slack; +inf: the last).
   /// @throws std::invalid_argument listing the checkpoint times when there is none.
   size_t checkpoint_at_or_before(double time_s) const;
   /// Reads checkpoint `k`; its parameter-state JSON into `parameter_state` if given.
