@@ -12,7 +12,7 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$here"
 t_start=$(date +%s)
 
-scripts/setup.sh
+FIBERFEM_BUILD_TARGETS=fiberfem scripts/setup.sh
 
 export CYCLONEDDS_URI="${CYCLONEDDS_URI:-file://$here/configs/dds/loopback.xml}"
 out="${FIBERFEM_OUT:-$here/out}"

@@ -4,6 +4,7 @@
 #
 #   scripts/setup.sh            install + configure + build (release preset, build/)
 #   FIBERFEM_SKIP_APT=1 ...     skip the package step (packages managed elsewhere)
+#   FIBERFEM_BUILD_TARGETS=fiberfem ...  build only these targets
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -55,5 +56,12 @@ preset="${FIBERFEM_PRESET:-release}"
 if [[ ! -f "build/$preset/build.ninja" ]]; then
   cmake --preset "$preset"
 fi
-cmake --build --preset "$preset"
+# FIBERFEM_BUILD_TARGETS="fiberfem ..." builds only those (the front door needs just the
+# command; the test command builds the rest).
+if [[ -n "${FIBERFEM_BUILD_TARGETS:-}" ]]; then
+  # shellcheck disable=SC2086
+  cmake --build --preset "$preset" --target ${FIBERFEM_BUILD_TARGETS}
+else
+  cmake --build --preset "$preset"
+fi
 echo "setup: build ready in build/$preset"
