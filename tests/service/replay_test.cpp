@@ -220,20 +220,25 @@ TEST_F(Replay, RenderingAnArchiveMatchesRenderingTheSceneItself) {
 
 // Rendering live from the bus: frames of a running service, its newest state each time.
 TEST_F(Replay, RenderingLiveFromTheBusDrawsTheRunningService) {
+  // The service starts paused at rest; the renderer joins; then the beam is released.
   const std::string run = unique("live");
-  BackgroundProcess service({FIBERFEM_BIN, "serve", "--builtin", "cantilever", "--run-id", run}, dir_.file("serve.log"));
+  BackgroundProcess service({FIBERFEM_BIN, "serve", "--builtin", "cantilever", "--run-id", run, "--paused"}, dir_.file("serve.log"));
   Client client;
   ASSERT_EQ(client.resolve_run(run, 20s), run) << service.output();
-  const ProcessResult live = run_process({"timeout", "120", FIBERFEM_BIN, "render", "--live", "--run", run, "--frames", "6", "--out",
-                                          dir_.file("live"), "--width", "320", "--height", "180", "--no-overlay"});
-  ASSERT_EQ(live.exit_code, 0) << live.output;
-  EXPECT_NE(live.output.find("skipped while drawing"), std::string::npos) << live.output;
+  BackgroundProcess live({FIBERFEM_BIN, "render", "--live", "--run", run, "--frames", "6", "--out", dir_.file("live"), "--width", "320",
+                          "--height", "180", "--no-overlay"},
+                         dir_.file("render.log"));
+  for (int i = 0; i < 300 && !std::filesystem::exists(dir_.file("live/frame-00000.png")); ++i) std::this_thread::sleep_for(50ms);
+  ASSERT_TRUE(std::filesystem::exists(dir_.file("live/frame-00000.png"))) << live.output();
+  ASSERT_TRUE(client.send(run, "resume", "{}").accepted);
+  ASSERT_EQ(live.wait(120), 0) << live.output();
+  EXPECT_NE(live.output().find("skipped while drawing"), std::string::npos) << live.output();
   for (int i = 0; i < 6; ++i) {
     char name[32];
     std::snprintf(name, sizeof name, "/frame-%05d.png", i);
     EXPECT_TRUE(std::filesystem::exists(dir_.file("live") + name)) << name;
   }
-  // The beam falls under gravity from rest: the first and last frames differ.
+  // Frame 0 is the rest shape; by frame 5 the released beam has fallen: they differ.
   EXPECT_GT(differing(render::read_png(dir_.file("live/frame-00000.png")), render::read_png(dir_.file("live/frame-00005.png")), 24), 0.002);
   EXPECT_TRUE(service.running());
 }
