@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -124,7 +125,7 @@ TEST_F(Serve, CommandedHeartRateIsTheRateOfThePublishedActivation) {
   double last_act = 1, last_t = 0;
   long last = static_cast<long>(ack.frame) + 1;
   const auto t_end = std::chrono::steady_clock::now() + 30s;
-  while (onsets.size() < 5 && std::chrono::steady_clock::now() < t_end) {
+  while (onsets.size() < 6 && std::chrono::steady_clock::now() < t_end) {
     const auto st = client.next_state(run, 5s, last);
     ASSERT_TRUE(st);
     last = static_cast<long>(st->frame);
@@ -134,8 +135,17 @@ TEST_F(Serve, CommandedHeartRateIsTheRateOfThePublishedActivation) {
     last_act = a, last_t = st->time_s;
   }
   ASSERT_GE(onsets.size(), 3u) << service->output();
-  const double period = (onsets.back() - onsets.front()) / static_cast<double>(onsets.size() - 1);
-  EXPECT_NEAR(60.0 / period, 150.0, 150.0 * 0.05);  // sampling at ~1/60 s of 0.4 s periods
+  // A client on a loaded machine may miss the states of a whole beat's quiet phase (the
+  // state topic keeps the newest only): an interval between onsets is then a whole number
+  // of periods. Each interval over its number of periods; their median.
+  std::vector<double> d;
+  for (size_t i = 1; i < onsets.size(); ++i) d.push_back(onsets[i] - onsets[i - 1]);
+  const double shortest = *std::min_element(d.begin(), d.end());
+  std::vector<double> periods;
+  for (double di : d) periods.push_back(di / std::max(1.0, std::round(di / shortest)));
+  std::nth_element(periods.begin(), periods.begin() + static_cast<std::ptrdiff_t>(periods.size() / 2), periods.end());
+  const double period = periods[periods.size() / 2];
+  EXPECT_NEAR(60.0 / period, 150.0, 150.0 * 0.05) << "onsets " << ::testing::PrintToString(onsets);
 }
 
 TEST_F(Serve, TwoServicesSideBySideEachClientSteersOnlyItsOwnRun) {
