@@ -34,19 +34,21 @@ TEST_F(Replay, ServedRunIsRecordedAndReplayedFrameForFrame) {
   const std::string run = unique("rec");
   const std::string h5 = dir_.file("run.h5");
   {
+    // Started paused, so the commands land before any step however slow the machine.
     BackgroundProcess service({FIBERFEM_BIN, "serve", "--builtin", "cantilever", "--run-id", run, "--until", "1.5", "--archive", h5,
-                               "--flush-frames", "5"},
+                               "--flush-frames", "5", "--paused"},
                               dir_.file("serve.log"));
     Client client;
     ASSERT_EQ(client.resolve_run(run, 20s), run) << service.output();
     ASSERT_TRUE(client.send(run, "set_gravity", R"({"gravity": [0, 0, -20]})").accepted);
     ASSERT_FALSE(client.send(run, "set_time_step", R"({"dt": -1})").accepted);
+    ASSERT_TRUE(client.send(run, "resume", "{}").accepted);
     ASSERT_EQ(service.wait(60), 0) << service.output();
   }
   const archive::ArchiveReader archive(h5);
   ASSERT_EQ(archive.frames(), 91);  // the rest state and 90 steps
   const auto commands = archive.commands();
-  ASSERT_EQ(commands.size(), 2u);
+  ASSERT_EQ(commands.size(), 3u);
   EXPECT_EQ(commands[0].kind, "set_gravity");
   EXPECT_TRUE(commands[0].accepted);
   EXPECT_FALSE(commands[1].accepted);

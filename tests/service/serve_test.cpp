@@ -249,8 +249,11 @@ actions:
   // The upward force lifts the free end (gravity is off): its z rises by a visible amount.
   const auto topo = client.topology(run, 5s);
   ASSERT_TRUE(topo);
-  std::this_thread::sleep_for(1500ms);
-  const auto s = client.next_state(run, 5s);
+  // One second of simulated time after the script (however slowly the machine runs it).
+  auto s = client.next_state(run, 5s);
+  ASSERT_TRUE(s);
+  const double t_after = s->time_s + 1.0;
+  for (int i = 0; i < 2000 && s && s->time_s < t_after; ++i) s = client.next_state(run, 5s, static_cast<long>(s->frame));
   ASSERT_TRUE(s);
   double lift = 0;
   for (size_t n = 0; n < topo->num_nodes; ++n)
@@ -296,7 +299,7 @@ TEST_F(Serve, ThirdPartyCycloneddsToolListsTopicsAndReadsAState) {
   const ProcessResult ls = run_process({"timeout", "30", tool, "ls", "--suppress-progress-bar", "--color", "none"});
   for (const char* topic : {"fiberfem_mesh_topology", "fiberfem_mesh_state", "fiberfem_command", "fiberfem_command_ack", "fiberfem_status"})
     EXPECT_NE(ls.output.find(topic), std::string::npos) << topic << "\n" << ls.output;
-  const ProcessResult sub = run_process({"timeout", "8", tool, "subscribe", "fiberfem_mesh_state", "--suppress-progress-bar",
+  const ProcessResult sub = run_process({"timeout", "12", tool, "subscribe", "fiberfem_mesh_state", "--suppress-progress-bar",
                                          "--color", "none"});
   EXPECT_NE(sub.output.find("MeshState("), std::string::npos) << sub.output;
   EXPECT_NE(sub.output.find("run_id='" + run + "'"), std::string::npos) << sub.output.substr(0, 2000);
