@@ -720,7 +720,8 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   if (top.has("solver")) {
     Map s(ctx, top["solver"], "solver",
           {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
-           "max_energy_gain", "until", "recycled_solutions"});
+           "max_energy_gain", "until", "recycled_solutions", "threads"});
+    if (s.has("threads")) st.threads = integer(ctx, s["threads"], "solver.threads", 0, 1024);
     if (s.has("recycled_solutions"))
       st.solver.recycled_solutions = integer(ctx, s["recycled_solutions"], "solver.recycled_solutions", 0, 64);
     if (s.has("until")) until_s = number(ctx, s["until"], "solver.until", 0, 1e9, true);

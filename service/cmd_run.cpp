@@ -35,6 +35,7 @@ struct RunArgs {
   double flush_seconds = -1, checkpoint_every = -1;
   bool velocities = false;
   double dt = 0, tolerance = 0;
+  int threads = 0;
   std::vector<int> cells;
   BatchOptions o;
 };
@@ -47,6 +48,7 @@ int run_command(CLI::App& run, RunArgs& a) {
   if (!a.preconditioner.empty()) sets.push_back("solver.preconditioner=" + a.preconditioner);
   if (run.count("--tolerance")) sets.push_back("solver.tolerance=" + format_number(a.tolerance));
   if (!a.rotation.empty()) sets.push_back("solver.rotation=" + a.rotation);
+  if (run.count("--threads")) sets.push_back("solver.threads=" + std::to_string(a.threads));
   if (!a.max_energy_gain.empty()) sets.push_back("solver.max_energy_gain=" + a.max_energy_gain);
   if (!a.cells.empty())
     sets.push_back("mesh.cells=[" + std::to_string(a.cells[0]) + ", " + std::to_string(a.cells[1]) + ", " +
@@ -133,6 +135,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
   run->add_option("--tolerance", a->tolerance, "PCG relative tolerance (solver.tolerance)")->check(CLI::Range(1e-14, 0.5));
   run->add_option("--rotation", a->rotation, "polar | svd (solver.rotation)")->check(CLI::IsMember({"svd", "polar"}));
   run->add_option("--max-energy-gain", a->max_energy_gain, "Energy check per step, relative; inf: off (solver.max_energy_gain)");
+  run->add_option("--threads", a->threads, "OpenMP threads, 0: all cores (solver.threads)")->check(CLI::Range(0, 1024));
   run->add_option("--cells", a->cells, "Box cells along x y z (mesh.cells)")->expected(3)->check(CLI::Range(1, 2000));
   // Recording (docs/archive.md); each also a key of the scene's `archive` mapping.
   run->add_option("--archive", a->archive, "Record the run into this HDF5 archive (archive.path)");

@@ -19,7 +19,7 @@ namespace {
 
 struct ServeArgs {
   std::string scene_file, builtin = "heart", archive, resume;
-  int flush_frames = 0;
+  int flush_frames = 0, threads = 0;
   double flush_seconds = -1;
   std::vector<std::string> overrides;
   bool fast = false;
@@ -41,6 +41,7 @@ int serve_command(CLI::App& cmd, ServeArgs& a) {
           throw std::invalid_argument("--resume " + a.resume + ": '" + t + "' is not a time in seconds (RUN.h5@1.5)");
       }
     }
+    if (cmd.count("--threads")) a.overrides.insert(a.overrides.begin(), "solver.threads=" + std::to_string(a.threads));
     io::Scene scene = [&] {
       if (!a.scene_file.empty()) {
         a.o.source = a.scene_file;
@@ -74,6 +75,8 @@ void add_serve_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--builtin", a->builtin, "Built-in scene when no file is given: heart | cantilever")->capture_default_str();
   cmd->add_option("--set", a->overrides, "Override a scene key: key.path=value (repeatable)");
   cmd->add_option("--run-id", a->o.run_id, "Run id (the key of every sample); default <scene>-<host>-<pid>");
+  cmd->add_option("--threads", a->threads, "OpenMP threads of the engine, 0: all cores (solver.threads); 1 keeps a shared machine's other work from stalling the step")
+      ->check(CLI::Range(0, 1024));
   cmd->add_flag("--fast", a->fast, "Step as fast as possible instead of in real time");
   cmd->add_option("--real-time-factor", a->o.real_time_factor, "Simulated seconds per wall second in real-time mode")
       ->check(CLI::Range(1e-6, 100.0))

@@ -172,6 +172,8 @@ TEST(Scene, BadInputNamesTheLineAndKeyPath) {
   // Wrong type and out of range.
   expect_error(replace_once(ex, "dt: 0.0166667", "dt: fast"), {"solver.dt", "expected a number"});
   expect_error(replace_once(ex, "dt: 0.0166667", "dt: -1"), {"test.yaml:31:", "solver.dt", "must be in"});
+  expect_error(replace_once(ex, "dt: 0.0166667", "dt: 0.0166667\n  threads: -2"), {"solver.threads", "must be in"});
+  expect_error(replace_once(ex, "dt: 0.0166667", "dt: 0.0166667\n  threads: many"), {"solver.threads"});
   expect_error(replace_once(ex, "cells: [40, 4, 4]", "cells: [40, 0, 4]"), {"mesh.cells[1]", "must be in"});
   expect_error(replace_once(ex, "method: pcg", "method: magic"), {"solver.method", "'magic' is not one of pcg, direct"});
   expect_error(replace_once(ex, "gravity: [0, 0, -9.81]", "gravity: [0, -9.81]"), {"loads.gravity", "three numbers"});
@@ -246,6 +248,11 @@ TEST(Scene, ReadsAMeshFileRelativeToTheScene) {
 }
 
 // --set overrides: keys, list indices and YAML values; bad paths are named.
+TEST(Scene, SolverThreadsReachTheEngineSettings) {
+  EXPECT_EQ(sc::parse_scene(kExample, "ex.yaml", "", {"solver.threads=1"}).settings.threads, 1);
+  EXPECT_EQ(sc::parse_scene(kExample, "ex.yaml").settings.threads, 0);
+}
+
 TEST(Scene, OverridesSetKeysBeforeParsing) {
   const sc::Scene s = sc::parse_scene(kExample, "ex.yaml", "",
                                       {"solver.dt=0.01", "regions[0].material.E_L=70.0e3", "loads.gravity=[0, 0, -1]",
