@@ -24,6 +24,7 @@ declare -A opts=(
   [heart]="--at 0.1 --field activation"
   [lv-beat]="--at 0.15 --field fiber_strain"
   [land-ventricle-p2]="--field displacement --fit frame --camera iso"
+  [land-ventricle-p3]="--field displacement --fit frame --camera iso"
   [beam-demo]="--field displacement --fit frame --camera front --fibers"
   [box-gravity]="--field displacement --fit frame --camera iso"
   [cantilever-across]="--field displacement --fit frame --camera iso --fibers"
