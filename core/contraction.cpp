@@ -40,6 +40,20 @@ double Twitch::value(double t) const {
   return (std::exp(-t / tau1_s) - std::exp(-t / tau2_s)) / beta;
 }
 
+std::vector<double> Contraction::activation(const std::vector<int>& regions, const std::vector<double>& tension_pa) const {
+  std::vector<double> a(regions.size(), 0.0);
+  if (tension_pa.empty()) return a;
+  if (tension_pa.size() != regions.size())
+    throw std::invalid_argument("activation: " + std::to_string(tension_pa.size()) + " tensions for " +
+                                std::to_string(regions.size()) + " elements");
+  for (size_t e = 0; e < regions.size(); ++e) {
+    const size_t r = static_cast<size_t>(regions[e]);
+    const double peak = r < region_peak_pa.size() ? region_peak_pa[r] : 0.0;
+    a[e] = peak > 0 ? tension_pa[e] / peak : 0.0;
+  }
+  return a;
+}
+
 bool Contraction::enabled() const {
   return std::any_of(region_peak_pa.begin(), region_peak_pa.end(), [](double p) { return p > 0; });
 }

@@ -77,6 +77,10 @@ struct Contraction {
   std::vector<double> element_delay_s;    ///< Activation delay per element, s (>= 0); empty: none.
 
   bool enabled() const;
+  /// Activation of each element: its tension over its region's peak, 1 (0 where the peak
+  /// is 0); zeros for an empty `tension_pa` (contraction off).
+  /// @throws std::invalid_argument when tension_pa is neither empty nor one per element.
+  std::vector<double> activation(const std::vector<int>& regions, const std::vector<double>& tension_pa) const;
   /// Tension of an element of region `region` with delay `delay_s` at time `t_s`, Pa.
   double tension(int region, double delay_s, double t_s) const;
   /// The normalised beat (tension / peak as a function of time since activation), sampled.

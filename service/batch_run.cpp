@@ -1,4 +1,5 @@
 #include "service/batch_run.hpp"
+#include "service/stop_signals.hpp"
 
 #include "core/corotation.hpp"
 #include "core/element.hpp"
@@ -29,8 +30,6 @@ namespace {
 using json = nlohmann::ordered_json;
 using Clock = std::chrono::steady_clock;
 
-volatile std::sig_atomic_t g_stop_signal = 0;
-extern "C" void on_stop_signal(int sig) { g_stop_signal = sig; }
 
 json vec(const core::Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
 
@@ -219,16 +218,8 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                                   " s is over 1e9 steps");
     const int steps = static_cast<int>(wanted);
     const core::Energies e0 = sim.energies();
-    g_stop_signal = 0;
     // Handlers for the loop, restored however it ends (a step can throw).
-    struct SignalGuard {
-      void (*old_int)(int), (*old_term)(int);
-      SignalGuard() : old_int(std::signal(SIGINT, on_stop_signal)), old_term(std::signal(SIGTERM, on_stop_signal)) {}
-      ~SignalGuard() {
-        std::signal(SIGINT, old_int);
-        std::signal(SIGTERM, old_term);
-      }
-    } signal_guard;
+    const StopSignals stop_signals;
 
     // Per-beat extremes. A beat is the contraction's period (the whole run without one);
     // the state at a beat's boundary belongs to both beats, and beat 0 starts from rest.
@@ -328,9 +319,9 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
     if (o.archive.enabled) throw std::runtime_error("--archive: this fiberfem was built without HDF5 (FIBERFEM_WITH_HDF5)");
 #endif
     for (int s = first_step; s <= steps; ++s) {
-      if (g_stop_signal) {
+      if (stop_signals.caught()) {
         status = "interrupted";
-        reason = std::string("stopped by signal ") + (g_stop_signal == SIGINT ? "SIGINT" : "SIGTERM");
+        reason = std::string("stopped by signal ") + stop_signals.name();
         break;
       }
       const core::StepReport r = sim.step();

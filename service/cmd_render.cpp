@@ -9,6 +9,7 @@
 #include "core/static_solver.hpp"
 #include "io/scene.hpp"
 #include "service/commands.hpp"
+#include "service/stop_signals.hpp"
 #ifdef FIBERFEM_HAVE_ARCHIVE
 #include "service/archive/archive.hpp"
 #endif
@@ -160,8 +161,6 @@ struct Feed {
   std::function<bool(core::Positions&, std::vector<double>&, double&, long&)> next;
 };
 
-volatile std::sig_atomic_t g_render_stop = 0;
-extern "C" void on_render_signal(int) { g_render_stop = 1; }
 
 std::string feed_caption(const Feed& f, double t, double fps) {
   char buf[256];
@@ -207,14 +206,13 @@ int render_feed(CLI::App& cmd, RenderArgs& a, Feed& feed) {
             << render::to_string(rs.field) << ", " << a.width << "x" << a.height << ", every " << a.every << " frames, "
             << renderer.describe() << "\n" << std::flush;
   const bool tty = isatty(fileno(stderr)) != 0;
-  g_render_stop = 0;
-  auto old_int = std::signal(SIGINT, on_render_signal);
+  const StopSignals stop_signals(/*term_too=*/false);
   core::Positions x;
   std::vector<double> act;
   double t = 0, t_first = -1;
   long step = 0, index = -1, frames = 0;
   const auto t_run = Clock::now();
-  while (!g_render_stop && feed.next(x, act, t, step)) {
+  while (!stop_signals.caught() && feed.next(x, act, t, step)) {
     ++index;
     if (t_first < 0) t_first = t;
     if (!a.strip.empty() && next_panel < a.strip_panels && strip_span < HUGE_VAL &&
@@ -248,7 +246,6 @@ int render_feed(CLI::App& cmd, RenderArgs& a, Feed& feed) {
       std::fflush(stderr);
     }
   }
-  std::signal(SIGINT, old_int);
   if (tty) std::fprintf(stderr, "\n");
   if (video) video->close();
   if (!a.strip.empty()) {

@@ -6,6 +6,7 @@
 
 #include "service/archive/archive.hpp"
 #include "service/run_endpoints.hpp"
+#include "service/stop_signals.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -22,8 +23,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-volatile std::sig_atomic_t g_replay_signal = 0;
-extern "C" void on_replay_signal(int sig) { g_replay_signal = sig; }
 
 struct Reject : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -94,6 +93,9 @@ int replay(const ReplayOptions& options, std::ostream& out) {
   topo.element_regions.assign(h.regions.begin(), h.regions.end());
   std::vector<double> peaks;
   scene_facts(h.scene_yaml, mesh.num_regions(), topo.region_names, peaks);
+  core::Contraction peak_table;  // the peaks only, for Contraction::activation
+  peak_table.region_peak_pa = peaks;
+  const bool has_peaks = std::any_of(peaks.begin(), peaks.end(), [](double p) { return p > 0; });
   for (const auto& f : h.fibers)
     for (int d = 0; d < 3; ++d) topo.fibers.push_back(static_cast<float>(f(d)));
   for (int n = 0; n < mesh.num_nodes(); ++n)
@@ -131,11 +133,9 @@ int replay(const ReplayOptions& options, std::ostream& out) {
     const archive::Frame f = reader.frame(i);
     pos.resize(static_cast<size_t>(f.positions.size()));
     for (Eigen::Index k = 0; k < f.positions.size(); ++k) pos[static_cast<size_t>(k)] = static_cast<float>(f.positions.data()[k]);
-    act.resize(f.activation_pa.size());
-    for (size_t e = 0; e < act.size(); ++e) {
-      const double peak = peaks[static_cast<size_t>(h.regions[e])];
-      act[e] = static_cast<float>(peak > 0 ? f.activation_pa[e] / peak : f.activation_pa[e]);
-    }
+    // Over the archived scene's peaks; in Pa when the scene text gave none.
+    const std::vector<double> a = has_peaks ? peak_table.activation(h.regions, f.activation_pa) : f.activation_pa;
+    act.assign(a.begin(), a.end());
     bus->publish_state(static_cast<unsigned long>(f.step), f.time_s, version, pos, act);
     published = i;
     ++published_count;
@@ -208,8 +208,7 @@ int replay(const ReplayOptions& options, std::ostream& out) {
     }
   };
 
-  g_replay_signal = 0;
-  auto old_int = std::signal(SIGINT, on_replay_signal), old_term = std::signal(SIGTERM, on_replay_signal);
+  const StopSignals stop_signals;
   const auto t_begin = Clock::now();
   auto t_last = Clock::now(), t_status = Clock::now() - std::chrono::hours(1), t_state = Clock::now();
   long frames_in_period = 0;
@@ -219,8 +218,8 @@ int replay(const ReplayOptions& options, std::ostream& out) {
       return std::make_pair(static_cast<unsigned long>(times.empty() ? 0 : steps[static_cast<size_t>(index)]), version);
     });
     if (shutdown) break;
-    if (g_replay_signal) {
-      stop = std::string("stopped by ") + (g_replay_signal == SIGINT ? "SIGINT" : "SIGTERM");
+    if (stop_signals.caught()) {
+      stop = std::string("stopped by ") + stop_signals.name();
       break;
     }
     const auto now = Clock::now();
@@ -289,8 +288,6 @@ int replay(const ReplayOptions& options, std::ostream& out) {
     if (paused && ordered_steps > 0) wait_s = 0;
     if (wait_s > 0) bus->wait_for_command(std::chrono::nanoseconds(static_cast<long long>(wait_s * 1e9)));
   }
-  std::signal(SIGINT, old_int);
-  std::signal(SIGTERM, old_term);
   if (options.status_line) std::fprintf(stderr, "\n");
   const double wall_s = std::chrono::duration<double>(Clock::now() - t_begin).count();
   out << "fiberfem replay: " << stop << "; " << published_count << " frames published in " << wall_s << " s ("

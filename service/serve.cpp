@@ -2,6 +2,7 @@
 // step -> publish -> status, paced to the wall clock in real-time mode.
 
 #include "service/serve.hpp"
+#include "service/stop_signals.hpp"
 
 #include "service/run_endpoints.hpp"
 #ifdef FIBERFEM_HAVE_ARCHIVE
@@ -25,8 +26,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-volatile std::sig_atomic_t g_serve_signal = 0;
-extern "C" void on_serve_signal(int sig) { g_serve_signal = sig; }
 
 double seconds_between(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
@@ -132,25 +131,14 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
         for (int d = 0; d < 3; ++d) pos_buf[3 * k + d] = static_cast<float>(x(d, state_nodes[k]));
     }
     // Activation: tension over its region's peak, 0..1 (empty when contraction is off).
-    const auto& act = sim.active_tension();
-    const auto& peaks = sim.model().contraction.region_peak_pa;
-    act_buf.resize(act.size());
-    for (size_t e = 0; e < act.size(); ++e) {
-      const double peak = peaks.empty() ? 0.0 : peaks[static_cast<size_t>(sim.model().mesh.regions()[e])];
-      act_buf[e] = peak > 0 ? static_cast<float>(act[e] / peak) : 0.f;
-    }
+    act_buf.clear();
+    if (!sim.active_tension().empty())
+      for (double a : sim.model().contraction.activation(sim.model().mesh.regions(), sim.active_tension()))
+        act_buf.push_back(static_cast<float>(a));
     bus->publish_state(static_cast<unsigned long>(sim.step_count()), sim.time_s(), rc.parameter_version(), pos_buf, act_buf);
   };
 
-  g_serve_signal = 0;
-  struct SignalGuard {
-    void (*old_int)(int), (*old_term)(int);
-    SignalGuard() : old_int(std::signal(SIGINT, on_serve_signal)), old_term(std::signal(SIGTERM, on_serve_signal)) {}
-    ~SignalGuard() {
-      std::signal(SIGINT, old_int);
-      std::signal(SIGTERM, old_term);
-    }
-  } signal_guard;
+  const StopSignals stop_signals;
 
   out << "fiberfem serve: run '" << run_id << "', scene '" << scene.name << "' (" << options.source << "), "
       << mesh.num_elements() << " tets, " << mesh.num_nodes() << " nodes, "
@@ -345,8 +333,8 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
       topology_version = rc.topology_version();
     }
     if (rc.shutdown_requested()) break;
-    if (g_serve_signal) {
-      stop_reason = std::string("stopped by ") + (g_serve_signal == SIGINT ? "SIGINT" : "SIGTERM");
+    if (stop_signals.caught()) {
+      stop_reason = std::string("stopped by ") + stop_signals.name();
       break;
     }
     if (options.until_s > 0 && rc.simulator().time_s() >= options.until_s - 1e-9) {

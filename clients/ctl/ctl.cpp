@@ -5,6 +5,7 @@
 #include "clients/ctl/client.hpp"
 #include "clients/ctl/cycle.hpp"
 #include "service/commands.hpp"
+#include "service/stop_signals.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -22,8 +23,6 @@ namespace {
 using clients::Client;
 using std::chrono::milliseconds;
 
-volatile std::sig_atomic_t g_ctl_stop = 0;
-extern "C" void on_ctl_signal(int) { g_ctl_stop = 1; }
 
 struct CtlArgs {
   std::string run_id;
@@ -64,7 +63,7 @@ int run_ctl(const std::string& what, CtlArgs& a) {
   }
   const std::string run = client.resolve_run(a.run_id, timeout);
   if (what == "status") {
-    std::signal(SIGINT, on_ctl_signal);
+    const StopSignals stop_signals(/*term_too=*/false);
     const bool tty = isatty(fileno(stdout)) != 0;
     int shown = 0;
     do {
@@ -88,14 +87,14 @@ int run_ctl(const std::string& what, CtlArgs& a) {
         print_status_line(*s, a.watch && tty);
       }
       ++shown;
-    } while ((a.watch || a.count > shown) && !g_ctl_stop && (a.count == 0 || shown < a.count));
+    } while ((a.watch || a.count > shown) && !stop_signals.caught() && (a.count == 0 || shown < a.count));
     if (a.watch && tty) std::printf("\n");
     return 0;
   }
   if (what == "echo") {
-    std::signal(SIGINT, on_ctl_signal);
+    const StopSignals stop_signals(/*term_too=*/false);
     long last = -1;
-    for (int shown = 0; !g_ctl_stop && (a.count == 0 || shown < a.count); ++shown) {
+    for (int shown = 0; !stop_signals.caught() && (a.count == 0 || shown < a.count); ++shown) {
       const auto st = client.next_state(run, timeout, last);
       if (!st) {
         std::cerr << "fiberfem ctl: no state from '" << run << "' for " << a.timeout_s << " s\n";

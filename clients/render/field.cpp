@@ -27,17 +27,7 @@ bool is_scalar(Field f) { return f == Field::activation || f == Field::fiber_str
 
 std::vector<double> activation_from_tension(const core::Contraction& contraction, const std::vector<int>& regions,
                                             const std::vector<double>& tension_pa) {
-  std::vector<double> a(regions.size(), 0.0);
-  if (tension_pa.empty()) return a;
-  if (tension_pa.size() != regions.size())
-    throw std::invalid_argument("activation_from_tension: " + std::to_string(tension_pa.size()) + " tensions for " +
-                                std::to_string(regions.size()) + " elements");
-  for (size_t e = 0; e < regions.size(); ++e) {
-    const size_t r = static_cast<size_t>(regions[e]);
-    const double peak = r < contraction.region_peak_pa.size() ? contraction.region_peak_pa[r] : 0.0;
-    a[e] = peak > 0 ? tension_pa[e] / peak : 0.0;
-  }
-  return a;
+  return contraction.activation(regions, tension_pa);
 }
 
 }  // namespace fiberfem::render
