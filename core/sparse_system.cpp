@@ -57,8 +57,30 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   };
   diag_.resize(static_cast<size_t>(num_free_));
   for (int r = 0; r < num_free_; ++r) diag_[static_cast<size_t>(r)] = value_index(r, r);
-  scatter_.assign(tets_.size() * 144, -1);
-  for (size_t e = 0; e < tets_.size(); ++e)
+  block_scatter_.assign(tets_.size() * kBlockIndices, 0);
+  general_offset_.assign(tets_.size(), -1);
+  general_scatter_.clear();
+  for (size_t e = 0; e < tets_.size(); ++e) {
+    bool all_free = true;
+    for (int a = 0; a < 4; ++a)
+      for (int c = 0; c < 3; ++c) all_free = all_free && free_index_[static_cast<size_t>(3 * tets_[e][a] + c)] >= 0;
+    if (all_free) {
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b)
+          for (int i = 0; i < 3; ++i) {
+            const int r = free_index_[static_cast<size_t>(3 * tets_[e][a] + i)];
+            const int col = free_index_[static_cast<size_t>(3 * tets_[e][b])];
+            const int first = value_index(r, col);
+            // The node's three columns follow one another in the row (free indices are
+            // in DOF order and the pattern holds whole node blocks).
+            if (value_index(r, col + 2) != first + 2) throw std::logic_error("sparse pattern: node block not contiguous");
+            block_scatter_[e * kBlockIndices + static_cast<size_t>((4 * a + b) * 3 + i)] = first;
+          }
+      continue;
+    }
+    general_offset_[e] = static_cast<int>(general_scatter_.size());
+    general_scatter_.resize(general_scatter_.size() + 144, -1);
+    int* s = &general_scatter_[static_cast<size_t>(general_offset_[e])];
     for (int a = 0; a < 4; ++a)
       for (int c = 0; c < 3; ++c)
         for (int b = 0; b < 4; ++b)
@@ -66,8 +88,9 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
             const int r = free_index_[static_cast<size_t>(3 * tets_[e][a] + c)];
             const int col = free_index_[static_cast<size_t>(3 * tets_[e][b] + d)];
             if (r < 0 || col < 0) continue;
-            scatter_[e * 144 + static_cast<size_t>((3 * b + d) * 12 + 3 * a + c)] = value_index(r, col);
+            s[(3 * b + d) * 12 + 3 * a + c] = value_index(r, col);
           }
+  }
 
   // Chunks of consecutive elements, coloured so that no two chunks of a colour share a
   // node. The mesh's own element order is kept when it is local (the box generator's,

@@ -42,12 +42,21 @@ class SparseSystem {
   /// Writes free values into a full DOF vector (fixed entries untouched).
   void scatter_free(const Eigen::VectorXd& free, Eigen::VectorXd& full) const;
 
-  /// Parallel element loop. For each element `e`, `kernel(e, Ke, fe)` fills a 12x12 matrix
-  /// and a 12 force vector (and may accumulate per-thread data indexed by `omp_get_thread_num`);
-  /// Ke is added into the matrix (free x free entries) and fe into `f_full` (3N).
-  /// Elements of one colour run concurrently; no two of them share a node.
+  /// Parallel element loop. For each element `e`, `kernel(e, Ke, fe)` fills a symmetric
+  /// 12x12 matrix (its upper 3x3 node blocks, b >= a, are read: the lower ones may be left
+  /// unset) and a 12 force vector (and may accumulate per-thread data indexed by
+  /// `omp_get_thread_num`); Ke is added into the matrix (free x free entries) and fe into
+  /// `f_full` (3N). Elements of one colour run concurrently; no two of them share a node.
   template <class Kernel>
-  void assemble(Kernel&& kernel, Eigen::VectorXd& f_full);
+  void assemble(Kernel&& kernel, Eigen::VectorXd& f_full) {
+    assemble_impl<true>(kernel, f_full);
+  }
+  /// As assemble, for element matrices that are not symmetric (the static solver's
+  /// consistent tangent): all sixteen node blocks of Ke are read.
+  template <class Kernel>
+  void assemble_unsymmetric(Kernel&& kernel, Eigen::VectorXd& f_full) {
+    assemble_impl<false>(kernel, f_full);
+  }
 
   /// Same chunked, coloured loop without a matrix: `kernel(e)` for each element; safe to
   /// write per-node data of the element's nodes.
@@ -55,6 +64,8 @@ class SparseSystem {
   void for_each_element_coloured(Kernel&& kernel) const;
 
  private:
+  template <bool Symmetric, class Kernel>
+  void assemble_impl(Kernel&& kernel, Eigen::VectorXd& f_full);
   int num_dofs_ = 0;
   int num_free_ = 0;
   std::vector<int> free_index_;
@@ -63,7 +74,15 @@ class SparseSystem {
   void colour_chunks(int num_nodes);
   SparseMatrix A_;
   std::vector<int> diag_;
-  std::vector<int> scatter_;  // 144 per element: value index or -1
+  // Where each element's entries go. An element whose 12 DOFs are all free (nearly all)
+  // has 48 indices: for node blocks (a, b) and row i of the block, the value index of
+  // (row 3 t[a] + i, column 3 t[b]); the block row's 3 columns are consecutive in the
+  // pattern. An element with a fixed DOF has 144 (value index of entry (i, j), column-major,
+  // or -1) further on, at general_offset_[e].
+  static constexpr int kBlockIndices = 48;
+  std::vector<int> block_scatter_;     // 48 per element (unused for elements with a fixed DOF)
+  std::vector<int> general_offset_;    // per element: offset into general_scatter_, or -1
+  std::vector<int> general_scatter_;   // 144 per element with a fixed DOF
   int chunk_size_ = 32;
   std::vector<std::vector<int>> colour_chunks_;  // chunk ids per colour
 };
@@ -82,18 +101,48 @@ void SparseSystem::for_each_element_coloured(Kernel&& kernel) const {
   }
 }
 
-template <class Kernel>
-void SparseSystem::assemble(Kernel&& kernel, Eigen::VectorXd& f_full) {
+template <bool Symmetric, class Kernel>
+void SparseSystem::assemble_impl(Kernel&& kernel, Eigen::VectorXd& f_full) {
   double* values = A_.valuePtr();
   for_each_element_coloured([&](int e) {
     Eigen::Matrix<double, 12, 12> Ke;
     Eigen::Matrix<double, 12, 1> fe;
     kernel(e, Ke, fe);
-    const int* s = &scatter_[static_cast<size_t>(e) * 144];
-    // Ke is column-major: entry (i, j) at j * 12 + i; scatter_ uses the same layout.
-    const double* k = Ke.data();
-    for (int ij = 0; ij < 144; ++ij)
-      if (s[ij] >= 0) values[s[ij]] += k[ij];
+    const double* k = Ke.data();  // column-major: entry (i, j) at j * 12 + i
+    const int general = general_offset_[static_cast<size_t>(e)];
+    if (general < 0 && !Symmetric) {
+      const int* s = &block_scatter_[static_cast<size_t>(e) * kBlockIndices];
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b)
+          for (int i = 0; i < 3; ++i) {
+            double* row = values + s[(4 * a + b) * 3 + i];
+            for (int j = 0; j < 3; ++j) row[j] += k[(3 * b + j) * 12 + 3 * a + i];
+          }
+    } else if (general < 0) {
+      const int* s = &block_scatter_[static_cast<size_t>(e) * kBlockIndices];
+      for (int a = 0; a < 4; ++a)
+        for (int b = a; b < 4; ++b)
+          for (int i = 0; i < 3; ++i) {
+            // Block (a, b), row i: Ke(3a + i, 3b + j), j = 0..2 (stride 12).
+            double* up = values + s[(4 * a + b) * 3 + i];
+            for (int j = 0; j < 3; ++j) up[j] += k[(3 * b + j) * 12 + 3 * a + i];
+            if (b != a) {
+              // Block (b, a), row i: Ke(3b + i, 3a + j) = Ke(3a + j, 3b + i), consecutive in j.
+              double* lo = values + s[(4 * b + a) * 3 + i];
+              const double* col = k + (3 * b + i) * 12 + 3 * a;
+              for (int j = 0; j < 3; ++j) lo[j] += col[j];
+            }
+          }
+    } else {
+      const int* s = &general_scatter_[static_cast<size_t>(general)];
+      for (int j = 0; j < 12; ++j)
+        for (int i = 0; i < 12; ++i) {
+          const int idx = s[j * 12 + i];
+          if (idx < 0) continue;
+          // Symmetric: upper blocks as given, lower ones from their transposes.
+          values[idx] += (!Symmetric || j / 3 >= i / 3) ? k[j * 12 + i] : k[i * 12 + j];
+        }
+    }
     const Tet& t = tets_[static_cast<size_t>(e)];
     for (int a = 0; a < 4; ++a) f_full.segment<3>(3 * t[static_cast<size_t>(a)]) += fe.segment<3>(3 * a);
   });

@@ -60,7 +60,7 @@ class Equilibrium {
     sys_.zero_matrix();
     Eigen::VectorXd dummy = Eigen::VectorXd::Zero(sys_.num_dofs());
     const Eigen::Map<const Positions> X(x.data(), 3, m_.mesh.num_nodes());
-    sys_.assemble(
+    sys_.assemble_unsymmetric(
         [&](int e, Mat12& Ke, Vec12& fe) {
           const size_t i = static_cast<size_t>(e);
           const Vec12 xe = gather(X, m_.mesh.tets()[i]);

@@ -17,6 +17,10 @@
 
 #include <CLI/CLI.hpp>
 #include <omp.h>
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h>
+#define FIBERFEM_HAVE_CALLGRIND 1
+#endif
 
 #include <algorithm>
 #include <chrono>
@@ -210,6 +214,15 @@ int main(int argc, char** argv) {
   app.add_option("--sizes", only, "Subset of sizes: small medium large");
   int only_case = -1;
   app.add_option("--case", only_case, "Run only this row of each size (0-based; for profiling)");
+  int callgrind_steps = 0;
+  app.add_option("--callgrind", callgrind_steps,
+                 "Under valgrind --tool=callgrind --instr-atstart=no --collect-atstart=no: step --case on the "
+                 "first --sizes past the warm-up this many times, each step collected and dumped on its own "
+                 "(named steady or not), then exit");
+  int trace = 0;
+  app.add_option("--trace", trace,
+                 "Print one line per step (time, phases, iterations, factorisations, substeps, retry reason) "
+                 "for this many steps of --case on the first --sizes, then exit");
   CLI11_PARSE(app, argc, argv);
   if (threads > 0) omp_set_num_threads(threads);
   g_refresh = refresh;
@@ -233,6 +246,52 @@ int main(int argc, char** argv) {
       {true, core::LinearSolverKind::pcg, core::RotationMethod::polar, core::PreconditionerKind::cholesky, false},
       {false, core::LinearSolverKind::pcg, core::RotationMethod::polar, core::PreconditionerKind::cholesky, false},
   };
+
+  if (callgrind_steps > 0) {
+#ifdef FIBERFEM_HAVE_CALLGRIND
+    const Size& size = sizes.front();
+    const Case& c = cases[static_cast<size_t>(std::max(only_case, 0))];
+    core::Simulator sim(make_beam(size, c.fiber), settings_for(c, tol));
+    for (int i = 0; i < size.warmup; ++i) sim.step();
+    // Each step is collected and dumped on its own (callgrind.out.PID.K, K from 1), named
+    // by whether it was steady (no refactorisation, no retry): compare steady dumps.
+    CALLGRIND_START_INSTRUMENTATION;
+    for (int i = 0; i < callgrind_steps; ++i) {
+      CALLGRIND_TOGGLE_COLLECT;
+      const core::StepReport r = sim.step();
+      CALLGRIND_TOGGLE_COLLECT;
+      const bool steady = r.solver_factorizations == 0 && r.attempts == 1;
+      const std::string label = "step " + std::to_string(i + 1) + (steady ? " steady" : " refactorised-or-retried") +
+                                " iterations " + std::to_string(r.solver_iterations);
+      CALLGRIND_DUMP_STATS_AT(label.c_str());
+      std::printf("dump %d: %s\n", i + 1, label.c_str());
+    }
+    CALLGRIND_STOP_INSTRUMENTATION;
+    std::printf("%d steps of %d tets (%s)\n", callgrind_steps, sim.model().mesh.num_elements(),
+                RUNNING_ON_VALGRIND ? "under valgrind" : "not under valgrind: nothing collected");
+    return 0;
+#else
+    std::fprintf(stderr, "bench_step: built without valgrind/callgrind.h (Debian package valgrind)\n");
+    return 2;
+#endif
+  }
+
+  if (trace > 0) {
+    const Size& size = sizes.front();
+    const Case& c = cases[static_cast<size_t>(std::max(only_case, 0))];
+    core::Simulator sim(make_beam(size, c.fiber), settings_for(c, tol));
+    std::printf("step ms_total ms_rot ms_asm ms_solve iterations factorisations substeps attempts message\n");
+    double sum = 0;
+    for (int i = 0; i < trace; ++i) {
+      const core::StepReport r = sim.step();
+      sum += r.time.total_s;
+      std::printf("%d %.3f %.3f %.3f %.3f %d %d %d %d %s\n", i, 1e3 * r.time.total_s, 1e3 * r.time.rotations_s,
+                  1e3 * r.time.assembly_s, 1e3 * r.time.solve_s, r.solver_iterations, r.solver_factorizations,
+                  r.substeps, r.attempts, r.message.c_str());
+    }
+    std::printf("mean %.3f ms (%.1f steps/s)\n", 1e3 * sum / trace, trace / sum);
+    return 0;
+  }
 
   std::ostringstream md;
   utsname u{};
