@@ -19,6 +19,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -207,40 +208,62 @@ double throughput(int nodes, double seconds, const std::string& label = "fiberfe
   return rate;
 }
 
-// Plain against secure, case by case in one run (docs/security.md). `dir`: the output of
-// scripts/make_security.sh (profiles/service.xml, operator.xml, observer.xml).
-void security(const std::string& dir, double seconds, int commands, int nodes) {
+// Plain against secure in one run (docs/security.md): each case measured plain then
+// secure (secure first in odd rounds, so a drift in the machine's load favours neither),
+// `rounds` times; the medians over rounds and the median of the per-round ratios.
+// `dir`: the output of scripts/make_security.sh (profiles service, operator, observer).
+void security(const std::string& dir, double seconds, int commands, int nodes, int rounds) {
   const char* env = std::getenv("CYCLONEDDS_URI");
   const std::string plain = env ? env : "";
   const auto profile = [&](const char* who) { return "file://" + dir + "/profiles/" + who + ".xml"; };
   const Profiles none{plain, plain, plain, plain};
   const Profiles secure{profile("service"), profile("operator"), profile("service"), profile("observer")};
   std::printf("plain: %s\nsecure: %s/profiles/{service,operator,observer}.xml\n", plain.c_str(), dir.c_str());
-  std::printf("| scene | nodes | elements | steps/s while publishing every step | states received/s | median step ms | median publish ms | state MB |\n|---|---|---|---|---|---|---|---|\n");
-  profiles = none;
-  const FramesResult fp = frames("heart-plain", {"--builtin", "heart"}, seconds);
-  profiles = secure;
-  const FramesResult fs = frames("heart-secure", {"--builtin", "heart"}, seconds);
-  profiles = none;
-  const LatencyResult lp = latency(commands, "plain: ");
-  profiles = secure;
-  const LatencyResult ls = latency(commands, "secure: ");
-  std::printf("| path | nodes | states/s | MB/s |\n|---|---|---|---|\n");
-  profiles = none;
-  const double tp = throughput(nodes, seconds, "MeshState, plain");
-  profiles = secure;
-  const double ts = throughput(nodes, seconds, "MeshState, secure");
-  const auto row = [](const char* what, double p, double s) {
-    std::printf("| %s | %.2f | %.2f | %.2f |\n", what, p, s, p > 0 ? s / p : 0.0);
-  };
-  std::printf("\n| figure | plain | secure | secure / plain |\n|---|---|---|---|\n");
-  row("heart: steps/s while publishing every step", fp.steps_per_s, fs.steps_per_s);
-  row("heart: states received/s", fp.received_per_s, fs.received_per_s);
-  row("command round trip, median ms", lp.ack_median_ms, ls.ack_median_ms);
-  row("command round trip, p99 ms", lp.ack_p99_ms, ls.ack_p99_ms);
-  row("command to effect, median ms", lp.effect_median_ms, ls.effect_median_ms);
-  row("command to effect, p99 ms", lp.effect_p99_ms, ls.effect_p99_ms);
-  row(("state throughput, states/s of " + std::to_string(nodes) + " nodes").c_str(), tp, ts);
+  // States of the heart's size (its 2,061 nodes) and of --nodes.
+  std::vector<int> sizes = {2061};
+  if (nodes != 2061) sizes.push_back(nodes);
+  std::vector<std::string> names = {"heart: steps/s while publishing every step", "heart: states received/s",
+                                    "command round trip, median ms", "command round trip, p99 ms",
+                                    "command to effect, median ms", "command to effect, p99 ms"};
+  for (int n : sizes) names.push_back("state throughput, states/s of " + std::to_string(n) + " nodes");
+  // figures[k][0 plain, 1 secure][round]
+  std::vector<std::array<std::vector<double>, 2>> figures(names.size());
+  for (int r = 0; r < rounds; ++r) {
+    std::printf("\nround %d of %d\n", r + 1, rounds);
+    std::printf("| scene | nodes | elements | steps/s while publishing every step | states received/s | median step ms | median publish ms | state MB |\n|---|---|---|---|---|---|---|---|\n");
+    for (int o = 0; o < 2; ++o) {
+      const int mode = (o + r) % 2;  // 0 plain, 1 secure
+      profiles = mode ? secure : none;
+      const FramesResult f = frames(mode ? "heart-secure" : "heart-plain", {"--builtin", "heart"}, seconds);
+      figures[0][mode].push_back(f.steps_per_s);
+      figures[1][mode].push_back(f.received_per_s);
+    }
+    for (int o = 0; o < 2; ++o) {
+      const int mode = (o + r) % 2;
+      profiles = mode ? secure : none;
+      const LatencyResult l = latency(commands, mode ? "secure: " : "plain: ");
+      figures[2][mode].push_back(l.ack_median_ms);
+      figures[3][mode].push_back(l.ack_p99_ms);
+      figures[4][mode].push_back(l.effect_median_ms);
+      figures[5][mode].push_back(l.effect_p99_ms);
+    }
+    std::printf("| path | nodes | states/s | MB/s |\n|---|---|---|---|\n");
+    for (size_t i = 0; i < sizes.size(); ++i)
+      for (int o = 0; o < 2; ++o) {
+        const int mode = (o + r) % 2;
+        profiles = mode ? secure : none;
+        figures[6 + i][mode].push_back(throughput(sizes[i], seconds, mode ? "MeshState, secure" : "MeshState, plain"));
+      }
+  }
+  std::printf("\nmedians over %d rounds\n\n| figure | plain | secure | secure / plain (median of the rounds' ratios) |\n|---|---|---|---|\n",
+              rounds);
+  for (size_t k = 0; k < names.size(); ++k) {
+    std::vector<double> ratios;
+    for (int r = 0; r < rounds; ++r)
+      if (figures[k][0][r] > 0) ratios.push_back(figures[k][1][r] / figures[k][0][r]);
+    std::printf("| %s | %.2f | %.2f | %.2f |\n", names[k].c_str(), percentile(figures[k][0], 0.5), percentile(figures[k][1], 0.5),
+                percentile(ratios, 0.5));
+  }
 }
 
 }  // namespace
@@ -257,13 +280,15 @@ int main(int argc, char** argv) {
   app.add_option("--seconds", seconds, "Measuring time per case, s");
   app.add_option("--commands", commands, "Commands for the latency");
   app.add_option("--nodes", nodes, "Nodes of a state for the throughput");
+  int rounds = 3;
+  app.add_option("--rounds", rounds, "security: rounds of plain and secure cases (medians reported)")->check(CLI::Range(1, 100));
   CLI11_PARSE(app, argc, argv);
   if (what == "security") {
     if (secure_dir.empty()) {
       std::fprintf(stderr, "bench_service security: --secure-dir DIR (made by scripts/make_security.sh DIR) is required\n");
       return 2;
     }
-    security(std::filesystem::absolute(secure_dir).string(), seconds, commands, nodes);
+    security(std::filesystem::absolute(secure_dir).string(), seconds, commands, nodes, rounds);
     return 0;
   }
   if (what == "frames" || what == "all") {
