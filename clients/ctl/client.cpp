@@ -67,10 +67,18 @@ std::string unique_client_id() {
 }
 
 Client::Client(std::string client_id)
-    : client_id_(client_id.empty() ? unique_client_id() : std::move(client_id)),
-      status_reader_(pp_),
-      ack_reader_(pp_),
-      command_writer_(pp_) {}
+    : client_id_(client_id.empty() ? unique_client_id() : std::move(client_id)), status_reader_(pp_) {
+  // Made up front so discovery of the command path runs while the client looks for runs.
+  // In secure mode an observer's identity is refused both: it can still watch.
+  try {
+    command_writer_.emplace(pp_);
+    ack_reader_.emplace(pp_);
+  } catch (const dds::DdsError& e) {
+    if (e.code() != DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) throw;
+    command_writer_.reset();
+    commands_refused_ = e.what();
+  }
+}
 
 void Client::poll_status() {
   status_reader_.take([&](const fiberfem_ServiceStatus& s, const dds_sample_info_t& info) {
@@ -86,11 +94,12 @@ void Client::poll_status() {
 
 bool Client::command_reader_matched(const std::string& run_id) const {
   const auto p = participants_.find(run_id);
+  if (!command_writer_) return false;
   dds_instance_handle_t handles[256];
-  const dds_return_t n = dds_get_matched_subscriptions(command_writer_.get(), handles, 256);
+  const dds_return_t n = dds_get_matched_subscriptions(command_writer_->get(), handles, 256);
   for (dds_return_t i = 0; i < n && i < 256; ++i) {
     if (p == participants_.end()) return true;  // the run's participant unknown: any reader will do
-    dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(command_writer_.get(), handles[i]);
+    dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(command_writer_->get(), handles[i]);
     if (!ep) continue;
     const bool same = std::memcmp(ep->participant_key.v, p->second.v, sizeof p->second.v) == 0;
     dds_builtintopic_free_endpoint(ep);
@@ -201,6 +210,9 @@ std::optional<State> Client::next_state(const std::string& run_id, std::chrono::
 
 Ack Client::send(const std::string& run_id, const std::string& kind, const std::string& args_json,
                  std::chrono::milliseconds wait) {
+  if (!command_writer_ || !ack_reader_)
+    throw NotPermitted("not permitted to send commands (observer identity: commands need the operator role, "
+                       "docs/security.md): " + commands_refused_);
   const auto deadline = Clock::now() + wait;
   // Commands are volatile: write only once the command reader of the run's own participant
   // (known from its status) is matched.
@@ -217,15 +229,15 @@ Ack Client::send(const std::string& run_id, const std::string& kind, const std::
   c.client_id = cid.data();
   c.kind = k.data();
   c.args = args.data();
-  command_writer_.write(c);
+  command_writer_->write(c);
   std::optional<Ack> ack;
   do {
-    ack_reader_.take([&](const fiberfem_CommandAck& a, const dds_sample_info_t&) {
+    ack_reader_->take([&](const fiberfem_CommandAck& a, const dds_sample_info_t&) {
       if (dds::str(a.run_id) != run_id || dds::str(a.command_id) != id) return;
       ack = Ack{a.accepted, dds::str(a.reason), a.frame, a.parameter_version};
     });
     if (ack) return *ack;
-  } while (ack_reader_.wait(left(deadline)) || Clock::now() < deadline);
+  } while (ack_reader_->wait(left(deadline)) || Clock::now() < deadline);
   throw std::runtime_error("no acknowledgement of '" + kind + "' (command " + id + ") from run '" + run_id + "' within the timeout");
 }
 

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <map>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -57,6 +58,13 @@ struct Ack {
   unsigned parameter_version = 0;
 };
 
+/// DDS Security's access control refused this client's identity what it asked for
+/// (commands from an observer identity, docs/security.md).
+class NotPermitted : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class Client {
  public:
   /// Joins the DDS domain (CYCLONEDDS_URI). `client_id` tags every command sent.
@@ -74,7 +82,8 @@ class Client {
   /// The next state of `run_id` newer than `after_frame` (any if negative), within `wait`.
   std::optional<State> next_state(const std::string& run_id, std::chrono::milliseconds wait, long after_frame = -1);
   /// Sends a command and waits for its acknowledgement. @throws std::runtime_error when no
-  /// acknowledgement arrives within `wait` (the message says whether the service was seen).
+  /// acknowledgement arrives within `wait` (the message says whether the service was seen);
+  /// NotPermitted when the identity may not send commands (secure mode, an observer).
   Ack send(const std::string& run_id, const std::string& kind, const std::string& args_json,
            std::chrono::milliseconds wait = std::chrono::seconds(10));
 
@@ -85,8 +94,11 @@ class Client {
   long next_command_ = 0;
   dds::Participant pp_;
   dds::Reader<fiberfem_ServiceStatus> status_reader_;
-  dds::Reader<fiberfem_CommandAck> ack_reader_;
-  dds::Writer<fiberfem_Command> command_writer_;
+  // The command path; absent when DDS Security refuses it to this identity (an observer
+  // may read states and status only), with the reason in commands_refused_.
+  std::optional<dds::Writer<fiberfem_Command>> command_writer_;
+  std::optional<dds::Reader<fiberfem_CommandAck>> ack_reader_;
+  std::string commands_refused_;
   std::optional<dds::Reader<fiberfem_MeshState>> state_reader_;
   std::optional<dds::Reader<fiberfem_MeshTopology>> topology_reader_;
   std::map<std::string, RunStatus> runs_;  // newest status per run

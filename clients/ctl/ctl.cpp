@@ -1,6 +1,7 @@
 // `fiberfem ctl`: the command-line client (docs/ctl.md). List runs, watch a run's status,
 // echo its frames, show its topology, and send any command (docs/commands.md), waiting
-// for the acknowledgement: exit 0 when accepted, 3 when rejected, 4 on no answer.
+// for the acknowledgement: exit 0 when accepted, 3 when rejected, 4 on no answer, 5 when
+// DDS Security does not permit this identity to send commands (docs/security.md).
 
 #include "clients/ctl/client.hpp"
 #include "clients/ctl/cycle.hpp"
@@ -179,6 +180,9 @@ void add_ctl_command(CLI::App& app, int& exit_code) {
     sub->callback([a, name, &exit_code] {
       try {
         exit_code = run_ctl(name, *a);
+      } catch (const clients::NotPermitted& e) {
+        std::cerr << "fiberfem ctl: " << e.what() << "\n";
+        exit_code = 5;
       } catch (const std::exception& e) {
         std::cerr << "fiberfem ctl: " << e.what() << "\n";
         exit_code = 4;

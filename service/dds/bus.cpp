@@ -56,7 +56,10 @@ void set_qos(dds_qos_t* q, Topic t) {
 }  // namespace
 
 dds_return_t check(dds_return_t rc, const char* what) {
-  if (rc < 0) throw DdsError(std::string(what) + " failed: " + dds_strretcode(rc));
+  if (rc == DDS_RETCODE_NOT_ALLOWED_BY_SECURITY)
+    throw DdsError(std::string(what) + " refused by DDS Security access control (the permissions of this identity "
+                   "do not grant it)", rc);
+  if (rc < 0) throw DdsError(std::string(what) + " failed: " + dds_strretcode(rc), rc);
   return rc;
 }
 
@@ -93,25 +96,26 @@ namespace detail {
 dds_entity_t create_topic(const Participant& pp, Topic t, const dds_topic_descriptor_t* desc) {
   Qos qos;
   set_qos(qos.q, t);
-  return check(dds_create_topic(pp.get(), desc, topic_name(t), qos.q, nullptr), "dds_create_topic");
+  return check(dds_create_topic(pp.get(), desc, topic_name(t), qos.q, nullptr),
+               (std::string("dds_create_topic ") + topic_name(t)).c_str());
 }
 
 dds_entity_t create_writer(const Participant& pp, dds_entity_t topic, Topic t) {
   Qos qos;
   set_qos(qos.q, t);
-  return check(dds_create_writer(pp.get(), topic, qos.q, nullptr), "dds_create_writer");
+  return check(dds_create_writer(pp.get(), topic, qos.q, nullptr), (std::string("dds_create_writer on ") + topic_name(t)).c_str());
 }
 
 dds_entity_t create_reader(const Participant& pp, dds_entity_t topic, Topic t) {
   Qos qos;
   set_qos(qos.q, t);
   if (t == Topic::state || t == Topic::status) dds_qset_deadline(qos.q, DDS_INFINITY);  // readers ask none
-  return check(dds_create_reader(pp.get(), topic, qos.q, nullptr), "dds_create_reader");
+  return check(dds_create_reader(pp.get(), topic, qos.q, nullptr), (std::string("dds_create_reader on ") + topic_name(t)).c_str());
 }
 
 void write(dds_entity_t writer, const void* sample, const char* what) {
   const dds_return_t rc = dds_write(writer, sample);
-  if (rc < 0) throw DdsError(std::string("dds_write on ") + what + " failed: " + dds_strretcode(rc));
+  if (rc < 0) throw DdsError(std::string("dds_write on ") + what + " failed: " + dds_strretcode(rc), rc);
 }
 
 bool wait_for_data(dds_entity_t waitset, std::chrono::nanoseconds timeout) {

@@ -22,7 +22,14 @@ namespace fiberfem::dds {
 /// A DDS call failed; the message names the call and Cyclone's reason.
 class DdsError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit DdsError(const std::string& what, dds_return_t code = DDS_RETCODE_ERROR)
+      : std::runtime_error(what), code_(code) {}
+  /// Cyclone's return code (DDS_RETCODE_NOT_ALLOWED_BY_SECURITY when DDS Security's
+  /// access control refused the entity, docs/security.md).
+  dds_return_t code() const { return code_; }
+
+ private:
+  dds_return_t code_;
 };
 
 /// Throws DdsError naming `what` when `rc` is a DDS error code; returns rc otherwise.
