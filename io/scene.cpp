@@ -184,7 +184,7 @@ const std::map<std::string, Fidelity>& fidelity_presets() {
   static const std::map<std::string, Fidelity> p{
       {"interactive", {1.0 / 30.0, 0.5, 1e-3}},
       {"balanced", {1.0 / 60.0, 1.0, 1e-6}},
-      {"accurate", {1.0 / 120.0, 1.5, 1e-8}},
+      {"accurate", {1.0 / 120.0, 1.5, 1e-6}},
   };
   return p;
 }
@@ -613,10 +613,12 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   // Fidelity preset (docs/scenes.md): step, mesh refinement and PCG tolerance, under the
   // scene's explicit keys.
   std::optional<Fidelity> fidelity;
+  std::string fidelity_name;
   if (top.has("fidelity")) {
     std::vector<std::string> names;
     for (const auto& [k, v] : fidelity_presets()) names.push_back(k);
-    fidelity = fidelity_presets().at(choice(ctx, top["fidelity"], "fidelity", names));
+    fidelity_name = choice(ctx, top["fidelity"], "fidelity", names);
+    fidelity = fidelity_presets().at(fidelity_name);
   }
 
   // Mesh, then the region of every element (first match wins).
@@ -803,6 +805,16 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
                                ? std::numeric_limits<double>::infinity()
                                : number(ctx, g, "solver.max_energy_gain", 0, HUGE_VAL);
     }
+  }
+
+  // A step larger than the requested fidelity's: the accuracy asked for is not what runs.
+  if (fidelity && mode == Mode::dynamic && st.dt_s > fidelity->dt_s * (1 + 1e-9)) {
+    const YAML::Node solver = top.has("solver") ? top["solver"] : YAML::Node();
+    const YAML::Node at = solver.IsMap() && solver["dt"] ? solver["dt"] : top["fidelity"];
+    std::ostringstream w;
+    w << "step " << st.dt_s << " s is larger than the '" << fidelity_name << "' preset's " << fidelity->dt_s
+      << " s: the run will be less accurate than that preset (measured error against the step: docs/speed-accuracy.md)";
+    ctx.warn(at, "solver.dt", w.str());
   }
 
   // Probes.

@@ -73,7 +73,10 @@ def plot(scene, rows, err_key, label, path):
     if f:
         ax.plot([c for c, _ in f], [e for _, e in f], "k-", lw=1.2, zorder=2, label="Pareto front")
     ax.axvline(1.0, color="0.6", lw=0.8, ls="--")
-    ax.text(1.0, ax.get_ylim()[0] if ax.get_yscale() == "linear" else 0, "", fontsize=8)
+    for r in rows:  # name the presets
+        if r["sweep"] == "preset" and r["stable"] and math.isfinite(r[err_key]) and r[err_key] > 0:
+            ax.annotate(r["feature"].replace("fidelity: ", ""), (r["cost"], r[err_key]), textcoords="offset points",
+                        xytext=(4, 6), fontsize=8)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("cost: wall s per simulated s (1 engine thread; dashed = real time)")
@@ -101,6 +104,7 @@ def main():
                 "l2": num(r["l2_err_rel"]),
                 "ef": abs(num(r["ef_err_pp"])),
                 "stable": r["stable"] == "1",
+                "feature": r["feature"],
             })
     os.makedirs(a.out, exist_ok=True)
     for scene, rows in by_scene.items():

@@ -19,7 +19,8 @@
 //   volume_err: max over time of |V - V_ref| / V_ref(0) of the first cavity;
 //   ef_err: ejection fraction (over the last beat) minus the reference's, percentage points;
 //   phase_err: time of the signal's extremum (least cavity volume in the last beat, or the
-//     probe's first peak) minus the reference's, ms (parabolic refinement between samples).
+//     probe's first peak; none for the settling scenes) minus the reference's, ms
+//     (parabolic refinement between samples).
 // Cost measures: wall seconds per simulated second (one engine thread unless --threads)
 // and steps per second.
 //
@@ -322,8 +323,8 @@ Errors compare(const Trace& run, const Trace& ref, const Interp* interp, const S
       e.phase_ms = 1e3 * (peak_time(run.t, a, t0, t1) - peak_time(ref.t, b, t0, t1));
     }
   }
-  if (!def.beating) {
-    // The probe's first peak: the first local maximum of |u| above half its largest value.
+  if (!def.beating && !def.settled) {
+    // The probe's first peak (an oscillating scene; a settling one has no phase): the first local maximum of |u| above half its largest value.
     auto first_peak = [](const Trace& tr) {
       std::vector<double> s(tr.probe.size());
       double big = 0;
@@ -437,9 +438,21 @@ struct Knobs {
   bool warm_start = true, corotation = true;
   std::string feature = "-";
   std::vector<std::string> feature_overrides;
+  std::string preset;  // a `fidelity` preset: the scene with that key and nothing else changed
 
   std::vector<std::string> overrides(const SceneDef& s) const {
     std::vector<std::string> o = s.base;
+    if (!preset.empty()) {
+      // The preset's key, and its step and tolerance again: the shipped scenes give
+      // solver.dt (and some solver.tolerance) explicitly, which would override the preset.
+      // The mesh refinement comes from the key alone.
+      const std::map<std::string, std::pair<std::string, std::string>> v{
+          {"interactive", {"1/30", "0.001"}}, {"balanced", {"1/60", "1e-06"}}, {"accurate", {"1/120", "1e-06"}}};
+      o.push_back("fidelity=" + preset);
+      o.push_back(dt_override(v.at(preset).first));
+      o.push_back("solver.tolerance=" + v.at(preset).second);
+      return o;
+    }
     const auto& lv = s.levels[static_cast<size_t>(level)].overrides;
     o.insert(o.end(), lv.begin(), lv.end());
     std::ostringstream tol;
@@ -480,6 +493,7 @@ std::string fmt(double v, int prec = 3) {
 
 std::string knob_text(const Row& r) {
   std::ostringstream o;
+  if (!r.k.preset.empty()) return "fidelity: " + r.k.preset + " (" + r.level_name + ")";
   o << "dt " << r.k.dt << ", " << r.level_name << ", ";
   if (r.k.method == "direct")
     o << "direct";
@@ -552,6 +566,7 @@ struct Study {
       in = &interps[n];
     }
     r.tets = tr.tets;
+    if (!k.preset.empty()) r.level_name = std::to_string(tr.tets) + " tets";
     r.e = compare(tr, ref, in, s);
     const double sim = tr.t.back();
     r.wall_per_sim = tr.wall_s / sim;
@@ -662,6 +677,13 @@ struct Study {
       k = base;
       k.corotation = false;
       measure(s, "corotation", k, ref, ref_mesh, interps);
+    }
+    // The presets, through the scene key itself (docs/scenes.md `fidelity`).
+    for (const char* preset : {"interactive", "balanced", "accurate"}) {
+      Knobs k = base;
+      k.preset = preset;
+      k.feature = std::string("fidelity: ") + preset;  // the CSV's label of the row
+      measure(s, "preset", k, ref, ref_mesh, interps);
     }
     for (const auto& [name, ov] : s.features) {
       Knobs k = base;

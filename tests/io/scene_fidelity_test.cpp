@@ -64,7 +64,7 @@ TEST(SceneFidelity, EachPresetSetsStepRefinementAndTolerance) {
   };
   // Box cells [20, 2, 2] times the refinement (0.5, 1, 1.5), rounded, at least 1.
   for (const Expect& e : {Expect{"interactive", 1.0 / 30, 1e-3, {10, 1, 1}}, Expect{"balanced", 1.0 / 60, 1e-6, {20, 2, 2}},
-                          Expect{"accurate", 1.0 / 120, 1e-8, {30, 3, 3}}}) {
+                          Expect{"accurate", 1.0 / 120, 1e-6, {30, 3, 3}}}) {
     const io::Scene s = io::parse_scene(kBox + "fidelity: " + e.name + "\n", "test.yaml");
     EXPECT_DOUBLE_EQ(s.settings.dt_s, e.dt) << e.name;
     EXPECT_DOUBLE_EQ(s.settings.solver.tolerance, e.tol) << e.name;
@@ -126,4 +126,15 @@ fixed:
   EXPECT_NE(s.warnings[0].find("E_T"), std::string::npos) << s.warnings[0];
   EXPECT_NE(s.warnings[0].find("1000"), std::string::npos) << s.warnings[0];
   EXPECT_TRUE(io::parse_scene(aniso, "test.yaml", "", {"regions[0].material.E_T=60.0"}).warnings.empty());
+}
+
+TEST(SceneFidelity, WarnsWhenTheStepIsLargerThanTheRequestedFidelitys) {
+  const io::Scene s = io::parse_scene(kBox + "fidelity: accurate\n", "test.yaml", "", {"solver.dt=0.02"});
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("solver.dt"), std::string::npos) << s.warnings[0];
+  EXPECT_NE(s.warnings[0].find("accurate"), std::string::npos) << s.warnings[0];
+  // A smaller step than the preset's, or no preset, warns of nothing.
+  EXPECT_TRUE(io::parse_scene(kBox + "fidelity: accurate\n", "test.yaml", "", {"solver.dt=0.001"}).warnings.empty());
+  EXPECT_TRUE(io::parse_scene(kBox, "test.yaml", "", {"solver.dt=0.5"}).warnings.empty());
+  EXPECT_TRUE(io::parse_scene(kBox + "fidelity: interactive\n", "test.yaml").warnings.empty());
 }
