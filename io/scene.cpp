@@ -27,6 +27,11 @@ struct Ctx {
   std::string origin;
   std::vector<std::string> overridden;  // key paths set by --set (they have no file line)
   const EmbeddedFiles* embedded = nullptr;  // files held in memory, by resolved path
+  mutable std::vector<std::string> warnings;  // Scene::warnings
+  void warn(const YAML::Node& at, const std::string& path, const std::string& what) const {
+    const int line = at.IsDefined() && at.Mark().line >= 0 ? at.Mark().line + 1 : 0;
+    warnings.push_back(origin + ":" + std::to_string(line) + ": " + path + ": " + what);
+  }
   [[noreturn]] void fail(const YAML::Node& at, const std::string& path, const std::string& what) const {
     for (const std::string& o : overridden)
       if (path.compare(0, o.size(), o) == 0 && (path.size() == o.size() || path[o.size()] == '.' || path[o.size()] == '['))
@@ -164,6 +169,26 @@ std::vector<int> select_nodes(const Ctx& ctx, const YAML::Node& n, const std::st
   return nodes;
 }
 
+// Beyond this E_L / E_T the stability map (docs/speed-accuracy.md) found a loaded tissue
+// beam that gained energy and did not return to rest (10,000); up to 1,000 it was stable.
+constexpr double kMaxStableFiberRatio = 1000.0;
+
+// The fidelity presets (scene key `fidelity`, docs/scenes.md), chosen from the measured
+// Pareto fronts of docs/speed-accuracy.md. Explicit keys of the scene override them.
+struct Fidelity {
+  double dt_s;          // solver.dt
+  double refine;        // mesh.refine: factor on a generator's resolution
+  double tolerance;     // solver.tolerance
+};
+const std::map<std::string, Fidelity>& fidelity_presets() {
+  static const std::map<std::string, Fidelity> p{
+      {"interactive", {1.0 / 30.0, 0.5, 1e-3}},
+      {"balanced", {1.0 / 60.0, 1.0, 1e-6}},
+      {"accurate", {1.0 / 120.0, 1.5, 1e-6}},
+  };
+  return p;
+}
+
 core::Material material(const Ctx& ctx, const YAML::Node& n, const std::string& path) {
   Map m(ctx, n, path,
         {"E_L", "E_T", "nu_LT", "nu_T", "G_L", "lame", "fiber_factor", "shear_factor", "C", "E", "nu", "density"});
@@ -185,6 +210,11 @@ core::Material material(const Ctx& ctx, const YAML::Node& n, const std::string& 
       c.nu_LT = number(ctx, m["nu_LT"], m.sub("nu_LT"));
       c.nu_T = number(ctx, m["nu_T"], m.sub("nu_T"));
       c.G_L = number(ctx, m["G_L"], m.sub("G_L"));
+      if (c.E_T > 0 && c.E_L / c.E_T > kMaxStableFiberRatio)
+        ctx.warn(m["E_T"], m.sub("E_T"),
+                 "fiber/cross-fiber ratio E_L/E_T = " + std::to_string(c.E_L / c.E_T) +
+                     " is above 1000, beyond the measured stability map: a loaded soft body may gain energy "
+                     "and not return to rest (docs/speed-accuracy.md)");
       return core::Material::from_engineering(c, rho);
     }
     if (lame) {
@@ -229,11 +259,17 @@ Eigen::Vector4d barycentric(const core::TetMesh& mesh, int e, const Vec3& p) {
   return {1 - l.sum(), l.x(), l.y(), l.z()};
 }
 
-core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base_dir, std::string& mesh_file) {
+// A generator's cell count times the refinement factor, at least `lo`.
+int refined(int cells, double refine, int lo) { return std::max(lo, static_cast<int>(std::lround(cells * refine))); }
+
+core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base_dir, std::string& mesh_file,
+                         double preset_refine) {
   if (!top.has("mesh")) ctx.fail(top.node(), "mesh", "missing (a generator or a file)");
   Map m(ctx, top["mesh"], "mesh",
-        {"generator", "size", "cells", "origin", "file", "scale", "inner", "outer", "base_z", "resolution"});
+        {"generator", "size", "cells", "origin", "file", "scale", "inner", "outer", "base_z", "resolution", "refine"});
   if (m.has("file") == m.has("generator")) ctx.fail(top["mesh"], "mesh", "give exactly one of generator, file");
+  if (m.has("refine") && m.has("file")) ctx.fail(m["refine"], "mesh.refine", "goes with a generator (a mesh file has one resolution)");
+  const double refine = m.has("refine") ? number(ctx, m["refine"], "mesh.refine", 0.05, 20) : preset_refine;
   if (m.has("file")) {
     std::string path = text(ctx, m["file"], "mesh.file");
     if (!path.empty() && path[0] != '/' && !base_dir.empty()) path = base_dir + "/" + path;
@@ -270,6 +306,9 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
       if (r.has("longitudinal")) lv.longitudinal = integer(ctx, r["longitudinal"], r.sub("longitudinal"), 2, 100000);
       if (r.has("transmural")) lv.transmural = integer(ctx, r["transmural"], r.sub("transmural"), 1, 100000);
     }
+    lv.circumferential = refined(lv.circumferential, refine, 6);
+    lv.longitudinal = refined(lv.longitudinal, refine, 2);
+    lv.transmural = refined(lv.transmural, refine, 1);
     try {
       return core::make_lv_ellipsoid(lv);
     } catch (const std::invalid_argument& e) {
@@ -287,6 +326,7 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
     if (!c.IsSequence() || c.size() != 3) ctx.fail(c, "mesh.cells", "expected three integers");
     for (int i = 0; i < 3; ++i) spec.cells[static_cast<size_t>(i)] = integer(ctx, c[i], "mesh.cells[" + std::to_string(i) + "]", 1, 100000);
   }
+  for (int& c : spec.cells) c = refined(c, refine, 1);
   if (m.has("origin")) spec.origin_m = vec3(ctx, m["origin"], "mesh.origin");
   if ((spec.size_m.array() <= 0).any()) ctx.fail(m["size"], "mesh.size", "every edge length must be > 0 m");
   return core::make_box(spec);
@@ -559,7 +599,7 @@ ArchiveSettings archive_settings(const Ctx& ctx, const YAML::Node& node) {
 
 Scene parse_scene(const std::string& yaml_text, const std::string& origin, const std::string& base_dir,
                   const std::vector<std::string>& overrides, const EmbeddedFiles* embedded) {
-  Ctx ctx{origin, {}, embedded};
+  Ctx ctx{origin, {}, embedded, {}};
   for (const std::string& o : overrides) ctx.overridden.push_back(o.substr(0, o.find('=')));
   YAML::Node root;
   try {
@@ -568,11 +608,22 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
   }
   for (const std::string& o : overrides) apply_override(root, o);
-  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes", "contraction", "measure", "archive"});
+  const Map top(ctx, root, "", {"name", "mesh", "regions", "fibers", "fixed", "loads", "solver", "probes", "contraction", "measure", "archive",
+                        "fidelity"});
+  // Fidelity preset (docs/scenes.md): step, mesh refinement and PCG tolerance, under the
+  // scene's explicit keys.
+  std::optional<Fidelity> fidelity;
+  std::string fidelity_name;
+  if (top.has("fidelity")) {
+    std::vector<std::string> names;
+    for (const auto& [k, v] : fidelity_presets()) names.push_back(k);
+    fidelity_name = choice(ctx, top["fidelity"], "fidelity", names);
+    fidelity = fidelity_presets().at(fidelity_name);
+  }
 
   // Mesh, then the region of every element (first match wins).
   std::string mesh_file;
-  core::TetMesh box_mesh = build_mesh(ctx, top, base_dir, mesh_file);
+  core::TetMesh box_mesh = build_mesh(ctx, top, base_dir, mesh_file, fidelity ? fidelity->refine : 1.0);
   if (!top.has("regions")) ctx.fail(root, "regions", "missing (at least one region with a material)");
   const YAML::Node regions = top["regions"];
   if (!regions.IsSequence() || regions.size() == 0) ctx.fail(regions, "regions", "expected a non-empty list");
@@ -715,12 +766,13 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
 
   // Solver.
   core::SimulatorSettings st;
+  if (fidelity) st.dt_s = fidelity->dt_s, st.solver.tolerance = fidelity->tolerance;
   Mode mode = Mode::dynamic;
   double until_s = 2.0;
   if (top.has("solver")) {
     Map s(ctx, top["solver"], "solver",
           {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
-           "max_energy_gain", "until", "recycled_solutions", "threads"});
+           "max_energy_gain", "until", "recycled_solutions", "threads", "corotation"});
     if (s.has("threads")) st.threads = integer(ctx, s["threads"], "solver.threads", 0, 1024);
     if (s.has("recycled_solutions"))
       st.solver.recycled_solutions = integer(ctx, s["recycled_solutions"], "solver.recycled_solutions", 0, 64);
@@ -741,6 +793,8 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
                                          "cholesky"
                                      ? core::PreconditionerKind::cholesky
                                      : core::PreconditionerKind::block_jacobi;
+    if (s.has("corotation"))
+      st.corotation = choice(ctx, s["corotation"], "solver.corotation", {"true", "false"}) == "true";
     if (s.has("warm_start")) {
       const std::string w = choice(ctx, s["warm_start"], "solver.warm_start", {"true", "false"});
       st.solver.warm_start = w == "true";
@@ -751,6 +805,16 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
                                ? std::numeric_limits<double>::infinity()
                                : number(ctx, g, "solver.max_energy_gain", 0, HUGE_VAL);
     }
+  }
+
+  // A step larger than the requested fidelity's: the accuracy asked for is not what runs.
+  if (fidelity && mode == Mode::dynamic && st.dt_s > fidelity->dt_s * (1 + 1e-9)) {
+    const YAML::Node solver = top.has("solver") ? top["solver"] : YAML::Node();
+    const YAML::Node at = solver.IsMap() && solver["dt"] ? solver["dt"] : top["fidelity"];
+    std::ostringstream w;
+    w << "step " << st.dt_s << " s is larger than the '" << fidelity_name << "' preset's " << fidelity->dt_s
+      << " s: the run will be less accurate than that preset (measured error against the step: docs/speed-accuracy.md)";
+    ctx.warn(at, "solver.dt", w.str());
   }
 
   // Probes.
@@ -804,7 +868,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   }
   ArchiveSettings archive;
   if (top.has("archive")) archive = archive_settings(ctx, top["archive"]);
-  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), std::move(cavities), {}, {}, {}, {}, {}, {}};
+  Scene scene{std::move(name), std::move(model), st, mode, until_s, std::move(probes), std::move(cavities), {}, {}, {}, {}, {}, {}, {}};
   // The hash covers what determines the run: the scene as parsed (after overrides; comments
   // and layout do not count) and the bytes of the files it reads (mesh, fibers, strokes).
   // Recording (the archive key) does not change the run.
@@ -833,6 +897,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   scene.hash_sha256 = sha256_hex(hashed);
   scene.region_names = region_names;
   scene.mesh_file = mesh_file;
+  scene.warnings = ctx.warnings;
   return scene;
 }
 
@@ -857,13 +922,13 @@ YAML::Node load_section(const std::string& yaml_text, const std::string& origin)
 }  // namespace
 
 core::Material parse_material(const std::string& yaml_text, const std::string& origin) {
-  const Ctx ctx{origin, {}, nullptr};
+  const Ctx ctx{origin, {}, nullptr, {}};
   return material(ctx, load_section(yaml_text, origin), "material");
 }
 
 core::Contraction parse_contraction(const std::string& yaml_text, const core::TetMesh& mesh,
                                     const std::vector<std::string>& region_names, const std::string& origin) {
-  const Ctx ctx{origin, {}, nullptr};
+  const Ctx ctx{origin, {}, nullptr, {}};
   core::Contraction c = contraction(ctx, load_section(yaml_text, origin), mesh, region_names);
   try {
     c.validate(mesh.num_regions(), mesh.num_elements());
@@ -874,13 +939,13 @@ core::Contraction parse_contraction(const std::string& yaml_text, const core::Te
 }
 
 ArchiveSettings parse_archive_settings(const std::string& yaml_text, const std::string& origin) {
-  const Ctx ctx{origin, {}, nullptr};
+  const Ctx ctx{origin, {}, nullptr, {}};
   return archive_settings(ctx, load_section(yaml_text, origin));
 }
 
 std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::TetMesh& mesh, const std::string& base_dir,
                                      const std::string& origin) {
-  const Ctx ctx{origin, {}, nullptr};
+  const Ctx ctx{origin, {}, nullptr, {}};
   std::vector<std::string> files_read;
   return fibers(ctx, load_section(yaml_text, origin), mesh, base_dir, files_read);
 }

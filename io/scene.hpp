@@ -77,6 +77,9 @@ struct Scene {
   ArchiveSettings archive;
   /// Region names, by region id.
   std::vector<std::string> region_names;
+  /// Settings the scene may run with but outside the measured limits (docs/speed-accuracy.md),
+  /// each "<origin>:<line>: <key path>: why"; `fiberfem run` and `serve` print them.
+  std::vector<std::string> warnings;
 };
 
 /// Files held in memory (built-in scenes' meshes), by path as the scene resolves it

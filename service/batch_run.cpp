@@ -167,6 +167,7 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                 sc.name.c_str(), o.source.c_str(), model.mesh.num_elements(), model.mesh.num_nodes(),
                 model.mesh.num_regions(), quality.min_dihedral_deg, quality.max_dihedral_deg, is_static ? "static" : "dynamic");
   out << line << std::flush;
+  for (const std::string& w : sc.warnings) out << "fiberfem: warning: " << w << "\n";
 
   json report;
   report["format"] = "fiberfem-run-report";

@@ -51,6 +51,7 @@ int serve_command(CLI::App& cmd, ServeArgs& a) {
       a.o.files = &embedded_files();
       return load_builtin_scene(a.builtin, a.overrides);
     }();
+    for (const std::string& w : scene.warnings) std::cerr << "fiberfem: warning: " << w << "\n";
     // Recording: the scene's archive key, then the command line over it.
     a.o.archive = scene.archive;
     if (!a.archive.empty()) a.o.archive.enabled = true, a.o.archive.path = a.archive;

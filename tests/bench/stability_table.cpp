@@ -1,0 +1,43 @@
+// bench_accuracy --stability: the stability map's table (tests/stability_map.hpp; the
+// same cases tests/core/stability_map_test.cpp checks), written as Markdown.
+
+#include "stability_map.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+
+namespace {
+std::string g(double v, const char* f = "%.2g") {
+  if (std::isnan(v)) return "";
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+}  // namespace
+
+int stability_main(const std::string& out_md, int /*threads*/) {
+  namespace st = fiberfem::stability;
+  std::ostringstream o;
+  o << "| extreme | value | stable | steps (recovered) | max (K+E) / bound, loaded | max (K+E) / E_release | "
+       "static reference | tip error vs reference | transient tip error vs dt 1/960 | rest error after release | note |\n"
+       "|---|---|---|---:|---:|---:|---|---:|---:|---:|---|\n";
+  for (const st::Case& c : st::cases()) {
+    st::Result r = st::run_case(c);
+    st::add_transient_error(c, r);
+    o << "| " << c.group << " | " << c.value << " | " << (r.stable(c) ? "yes" : "**no**") << " | " << r.steps << " ("
+      << r.recovered_steps << ") | " << g(r.energy_ratio, "%.3f") << " | " << g(r.release_energy_ratio, "%.3f") << " | "
+      << (r.static_converged ? "tip " + g(r.static_tip_m * 1e3, "%.3g") + " mm" : "not converged") << " | "
+      << g(r.tip_error) << " | " << g(r.transient_error) << " | " << g(r.rest_error) << " | "
+      << (r.finite ? "" : "non-finite state; ") << (r.failed_steps ? std::to_string(r.failed_steps) + " failed steps; " : "")
+      << r.note << " |\n";
+    std::cout << c.group << " " << c.value << ": " << (r.stable(c) ? "stable" : "NOT stable") << ", tip error "
+              << g(r.tip_error) << ", transient " << g(r.transient_error) << ", rest error " << g(r.rest_error) << ", energy " << g(r.energy_ratio, "%.3f") << "/"
+              << g(r.release_energy_ratio, "%.3f") << ", recovered " << r.recovered_steps << "/" << r.steps << "\n";
+  }
+  std::ofstream(out_md) << o.str();
+  std::cout << "wrote " << out_md << "\n";
+  return 0;
+}
