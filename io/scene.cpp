@@ -388,6 +388,10 @@ void apply_override(YAML::Node root, const std::string& assignment) {
         return;
       }
       YAML::Node child = node[parts[k].first];
+      if (!child.IsDefined() || child.IsNull()) {  // a missing mapping on the way is created
+        node[parts[k].first] = YAML::Node(YAML::NodeType::Map);
+        child = node[parts[k].first];
+      }
       node.reset(child);
     }
   }

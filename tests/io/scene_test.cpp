@@ -279,6 +279,27 @@ TEST(Scene, OverridesSetKeysBeforeParsing) {
   }
 }
 
+// --set creates the mappings on its path that the scene leaves out (a scene without a
+// solver section gets one).
+TEST(Scene, OverridesCreateMissingMappings) {
+  const std::string yaml = R"(name: bare
+mesh:
+  generator: lv_ellipsoid
+  inner: {rs: 0.007, rl: 0.017}
+  outer: {rs: 0.010, rl: 0.020}
+  base_z: 0.005
+  resolution: {circumferential: 12, longitudinal: 4, transmural: 1}
+regions:
+  - select: all
+    material: {E: 10.0e3, nu: 0.45, density: 1000}
+fixed:
+  - node_set: base
+)";
+  const sc::Scene s = sc::parse_scene(yaml, "bare.yaml", "", {"solver.dt=0.02", "solver.tolerance=1e-4"});
+  EXPECT_DOUBLE_EQ(s.settings.dt_s, 0.02);
+  EXPECT_DOUBLE_EQ(s.settings.solver.tolerance, 1e-4);
+}
+
 // The benchmark ellipsoid from a scene: the keys reach the generator (the same mesh as
 // core's generator with the same spec), its surfaces are node sets that selectors use (the
 // base held, a cavity pressure on the endocardium), and box keys are refused by name.
