@@ -77,7 +77,7 @@ std::vector<std::string> Client::poll_status() {
       [&](const fiberfem_ServiceStatus& s, const dds_sample_info_t& info) {
         const std::string id = dds::str(s.run_id);
         if (!info.valid_data) {  // the key only: the instance lost its writers or was disposed
-          if (info.instance_state == DDS_NOT_ALIVE_DISPOSED_INSTANCE_STATE) gone_[id] = "its status was disposed";
+          if (info.instance_state == DDS_NOT_ALIVE_DISPOSED_INSTANCE_STATE) gone_[id] = "its status was disposed (by the service, or by DDS when its writer's lease expired)";
           else if (info.instance_state == DDS_NOT_ALIVE_NO_WRITERS_INSTANCE_STATE) gone_[id] = "its status writer is gone (liveliness lost)";
           return;
         }
@@ -254,9 +254,8 @@ void Client::await_command_reader(const std::string& run_id, Clock::time_point d
     throw std::runtime_error("the command reader of run '" + run_id + "' was not matched within the timeout (is it running?)");
 }
 
-std::string Client::post(const std::string& run_id, const std::string& kind, const std::string& args_json) {
-  std::string id = client_id_ + "-" + std::to_string(++next_command_);
-  std::string rid = run_id, cid = client_id_, k = kind, args = args_json.empty() ? "{}" : args_json;
+void Client::post(const std::string& run_id, const std::string& command_id, const std::string& kind, const std::string& args_json) {
+  std::string id = command_id, rid = run_id, cid = client_id_, k = kind, args = args_json.empty() ? "{}" : args_json;
   fiberfem_Command c{};
   c.run_id = rid.data();
   c.command_id = id.data();
@@ -264,7 +263,6 @@ std::string Client::post(const std::string& run_id, const std::string& kind, con
   c.kind = k.data();
   c.args = args.data();
   command_writer_.write(c);
-  return id;
 }
 
 Ack Client::send(const std::string& run_id, const std::string& kind, const std::string& args_json,
@@ -272,7 +270,9 @@ Ack Client::send(const std::string& run_id, const std::string& kind, const std::
   const auto deadline = Clock::now() + wait;
   if (!ack_reader_) ack_reader_.emplace(pp_);  // transient-local: an ack written before it matched still arrives
   await_command_reader(run_id, deadline);
-  const std::string id = post(run_id, kind, args_json);
+  const std::string id = next_id();
+  post(run_id, id, kind, args_json);
+  auto written = Clock::now();
   std::optional<Ack> ack;
   do {
     ack_reader_->take([&](const fiberfem_CommandAck& a, const dds_sample_info_t&) {
@@ -280,7 +280,12 @@ Ack Client::send(const std::string& run_id, const std::string& kind, const std::
       ack = Ack{a.accepted, dds::str(a.reason), a.frame, a.parameter_version};
     });
     if (ack) return *ack;
-  } while (ack_reader_->wait(left(deadline)) || Clock::now() < deadline);
+    if (Clock::now() - written >= kResendAfter) {
+      post(run_id, id, kind, args_json);
+      written = Clock::now();
+    }
+  } while (ack_reader_->wait(std::min(left(deadline), std::chrono::nanoseconds(std::chrono::milliseconds(100)))) ||
+           Clock::now() < deadline);
   throw std::runtime_error("no acknowledgement of '" + kind + "' (command " + id + ") from run '" + run_id + "' within the timeout");
 }
 
@@ -296,6 +301,7 @@ FloodReport Client::flood(const std::string& run_id, const std::string& kind, co
   FloodReport r;
   std::map<std::string, Clock::time_point> outstanding;
   std::set<std::string> answered;
+  std::map<std::string, Clock::time_point> written;  // of the outstanding commands, last written
   auto take_acks = [&] {
     ack_reader_->take([&](const fiberfem_CommandAck& a, const dds_sample_info_t&) {
       if (dds::str(a.run_id) != run_id) return;
@@ -308,6 +314,7 @@ FloodReport Client::flood(const std::string& run_id, const std::string& kind, co
       if (o == outstanding.end()) return;  // another client's
       r.latencies_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - o->second).count());
       outstanding.erase(o);
+      written.erase(id);
       answered.insert(id);
       ++r.acked;
       if (a.accepted) ++r.accepted, r.versions.push_back(a.parameter_version);
@@ -317,9 +324,17 @@ FloodReport Client::flood(const std::string& run_id, const std::string& kind, co
   auto t_last = t0;
   while ((r.sent < count || !outstanding.empty()) && Clock::now() < deadline) {
     while (r.sent < count && static_cast<int>(outstanding.size()) < window) {
-      outstanding[post(run_id, kind, args_json)] = Clock::now();
+      const std::string id = next_id();
+      post(run_id, id, kind, args_json);
+      outstanding[id] = written[id] = Clock::now();
       ++r.sent;
     }
+    for (auto& [id, t] : written)
+      if (outstanding.count(id) && Clock::now() - t >= kResendAfter) {
+        post(run_id, id, kind, args_json);
+        t = Clock::now();
+        ++r.resent;
+      }
     const int before = r.acked;
     take_acks();
     if (r.acked > before) t_last = Clock::now();

@@ -63,6 +63,7 @@ struct FloodReport {
   int acked = 0;           ///< Commands with an acknowledgement.
   int accepted = 0;        ///< ... of which accepted.
   int duplicate_acks = 0;  ///< Acknowledgements received again for an already answered command.
+  int resent = 0;          ///< Commands written again (same id) after kResendAfter without an answer.
   std::vector<unsigned> versions;     ///< Parameter version of each accepted command's ack.
   std::vector<double> latencies_ms;   ///< Write to acknowledgement, per acknowledged command, ms.
   double seconds = 0;      ///< Wall time from the first write to the last acknowledgement, s.
@@ -84,7 +85,10 @@ class Client {
   std::optional<Topology> topology(const std::string& run_id, std::chrono::milliseconds wait);
   /// The next state of `run_id` newer than `after_frame` (any if negative), within `wait`.
   std::optional<State> next_state(const std::string& run_id, std::chrono::milliseconds wait, long after_frame = -1);
-  /// Sends a command and waits for its acknowledgement. @throws std::runtime_error when no
+  /// Sends a command and waits for its acknowledgement, writing it again under the same id
+  /// every kResendAfter without one (a command written just before the service had
+  /// discovered this client is not delivered; the service applies an id once and answers
+  /// a repeat with the first answer). @throws std::runtime_error when no
   /// acknowledgement arrives within `wait` (the message says whether the service was seen).
   Ack send(const std::string& run_id, const std::string& kind, const std::string& args_json,
            std::chrono::milliseconds wait = std::chrono::seconds(10));
@@ -106,6 +110,8 @@ class Client {
   /// The newest status of each run read so far.
   const std::map<std::string, RunStatus>& runs() const { return runs_; }
   const std::string& client_id() const { return client_id_; }
+  /// How long a command waits for its answer before it is written again (same id).
+  static constexpr std::chrono::milliseconds kResendAfter{1000};
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -127,8 +133,9 @@ class Client {
   bool command_reader_matched(const std::string& run_id) const;
   /// Waits until the command reader of `run_id`'s participant is matched. @throws on timeout.
   void await_command_reader(const std::string& run_id, Clock::time_point deadline);
-  /// Writes one command; returns its id.
-  std::string post(const std::string& run_id, const std::string& kind, const std::string& args_json);
+  /// Writes one command under `id`.
+  void post(const std::string& run_id, const std::string& id, const std::string& kind, const std::string& args_json);
+  std::string next_id() { return client_id_ + "-" + std::to_string(++next_command_); }
   /// Reads the status samples that arrived; returns the run ids with a new status.
   std::vector<std::string> poll_status();
 };
