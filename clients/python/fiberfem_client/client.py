@@ -35,7 +35,9 @@ QOS = {
     "topology": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1)),
     "state": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
     "command": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepAll),
-    "ack": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(64)),
+    "ack": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1024),
+               Policy.DurabilityService(cleanup_delay=0, history=Policy.History.KeepLast(64), max_samples=-1,
+                                        max_instances=-1, max_samples_per_instance=-1)),
     "status": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
 }
 TOPIC_NAMES = {
@@ -97,7 +99,8 @@ class Client:
              for k, cls in (("topology", MeshTopology), ("state", MeshState), ("command", Command),
                             ("ack", CommandAck), ("status", ServiceStatus))}
         self._status = DataReader(self.dp, t["status"], qos=QOS["status"])
-        self._ack = DataReader(self.dp, t["ack"], qos=QOS["ack"])
+        # Keep all: the acks of every client of a run share one instance (service/dds/bus.cpp).
+        self._ack = DataReader(self.dp, t["ack"], qos=Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepAll))
         self._state = DataReader(self.dp, t["state"], qos=QOS["state"])
         self._topology = DataReader(self.dp, t["topology"], qos=QOS["topology"])
         self._command = DataWriter(self.dp, t["command"], qos=QOS["command"])
@@ -207,12 +210,16 @@ class Client:
             raise FiberfemError(f"no service matched the command topic (is '{run_id}' running?)")
         self._next += 1
         cid = f"{self.client_id}-{self._next}"
-        self._command.write(Command(run_id=run_id, command_id=cid, client_id=self.client_id, kind=kind,
-                                    args=json.dumps(args or {})))
+        command = Command(run_id=run_id, command_id=cid, client_id=self.client_id, kind=kind, args=json.dumps(args or {}))
+        self._command.write(command)
+        written = time.monotonic()
         while time.monotonic() < end:
-            for a in self._ack.take(N=64):
+            for a in self._ack.take(N=256):
                 if isinstance(a, CommandAck) and a.run_id == run_id and a.command_id == cid:
                     return Ack(a.accepted, a.reason, a.frame, a.parameter_version)
+            if time.monotonic() - written >= 1.0:  # unanswered: again under the same id (applied once)
+                self._command.write(command)
+                written = time.monotonic()
             time.sleep(0.005)
         raise FiberfemError(f"no acknowledgement of '{kind}' from '{run_id}' in {wait_s} s")
 
