@@ -22,6 +22,8 @@ packages=(
   python3 python3-venv time
   # the gmsh wheel's runtime libraries (scripts/make_*.py regenerate the shipped meshes)
   libglu1-mesa libxcursor1 libxft2 libxinerama1 libgl1 libfontconfig1
+  # ip netns: the several-hosts test (tests/service/netns_test.cpp)
+  iproute2
 )
 
 missing=()

@@ -23,7 +23,12 @@ using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
 const std::string kBin = FIBERFEM_BIN;
-const std::string kIp = "/usr/sbin/ip";
+// iproute2's `ip`, wherever the system puts it.
+const std::string kIp = [] {
+  for (const char* p : {"/usr/sbin/ip", "/sbin/ip", "/usr/bin/ip", "/bin/ip"})
+    if (access(p, X_OK) == 0) return std::string(p);
+  return std::string("/usr/sbin/ip");
+}();
 
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
