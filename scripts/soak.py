@@ -46,6 +46,13 @@ def rss_kb(pid):
     return 0
 
 
+def cpu_s(pid):
+    """User + system CPU time of the process, s (/proc/PID/stat fields 14 and 15)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def slope(xs, ys):
     n = len(xs)
     if n < 2:
@@ -74,7 +81,7 @@ def main():
         c = Client(f"soak-{os.getpid()}")
         c.resolve_run(run, 30)
         t0 = time.monotonic()
-        samples, sent, accepted, unanswered = [], 0, 0, 0
+        samples, sent, accepted, unanswered, rejections = [], 0, 0, 0, {}
         next_cmd = next_sample = t0
         k = 0
         last_status = None
@@ -87,6 +94,8 @@ def main():
                 try:
                     ack = c.send(run, kind, args, wait_s=30)
                     accepted += ack.accepted
+                    if not ack.accepted:
+                        rejections[f"{kind}: {ack.reason}"] = rejections.get(f"{kind}: {ack.reason}", 0) + 1
                 except FiberfemError:
                     if svc.poll() is None:
                         unanswered += 1
@@ -97,7 +106,8 @@ def main():
                     last_status = st
                     if st.state == "stopped":
                         break
-                    samples.append({"wall_s": now - t0, "sim_s": st.time_s, "rss_kb": rss_kb(svc.pid),
+                    samples.append({"wall_s": now - t0, "sim_s": st.time_s, "rss_kb": rss_kb(svc.pid), "cpu_s": cpu_s(svc.pid),
+                                    "load1": os.getloadavg()[0],
                                     "steps_per_s": st.frames_per_second, "kinetic_j": st.kinetic_energy_j,
                                     "elastic_j": st.elastic_energy_j, "frame": st.frame})
                     s = samples[-1]
@@ -111,7 +121,7 @@ def main():
         log.close()
         tail = open(os.path.join(work, "serve.log")).read()[-2000:]
 
-    if len(samples) < 10:
+    if len(samples) < 4:
         print("too few samples:\n" + tail, file=sys.stderr)
         return 1
     w = max(1, int(len(samples) * a.warmup))
@@ -120,6 +130,11 @@ def main():
     first = statistics.median(s["steps_per_s"] for s in samples[:tenth])
     last = statistics.median(s["steps_per_s"] for s in samples[-tenth:])
     energy = [s["kinetic_j"] + s["elastic_j"] for s in samples]
+    # CPU time per step between samples: the work a step costs, whatever else the machine runs.
+    for a_, b_ in zip(samples, samples[1:]):
+        b_["cpu_ms_per_step"] = 1e3 * (b_["cpu_s"] - a_["cpu_s"]) / max(1, b_["frame"] - a_["frame"])
+    cps = [s["cpu_ms_per_step"] for s in samples[1:]]
+    half = kept[len(kept) // 2:]
     rss_mb = [s["rss_kb"] / 1024 for s in kept]
     summary = {
         "sim_seconds": samples[-1]["sim_s"], "wall_seconds": samples[-1]["wall_s"], "samples": len(samples),
@@ -129,6 +144,12 @@ def main():
         "rss_slope_mb_per_sim_hour": slope([s["sim_s"] / 3600 for s in kept], rss_mb),
         "steps_per_s_first_10pct": first, "steps_per_s_last_10pct": last,
         "steps_per_s_drift_pct": 100 * (last - first) / first if first > 0 else float("nan"),
+        "rss_slope_second_half_mb_per_hour": slope([s["wall_s"] / 3600 for s in half], [s["rss_kb"] / 1024 for s in half]),
+        "cpu_ms_per_step_first_10pct": statistics.median(cps[:tenth]),
+        "cpu_ms_per_step_last_10pct": statistics.median(cps[-tenth:]),
+        "load1_first_10pct": statistics.median(s["load1"] for s in samples[:tenth]),
+        "load1_last_10pct": statistics.median(s["load1"] for s in samples[-tenth:]),
+        "rejections": rejections,
         "energy_min_j": min(energy), "energy_max_j": max(energy),
         "commands_sent": sent, "commands_accepted": accepted, "commands_unanswered": unanswered,
         "final_frame": last_status.frame if last_status else None,
