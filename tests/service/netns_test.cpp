@@ -190,5 +190,52 @@ TEST(SeveralHosts, DiscoverySteeringReplayAndACutOffClientRecovers) {
   EXPECT_EQ(service.stop(), 0) << service.output();
 }
 
+// The follower's rule without a run id ("the only live run, then the only live run of the
+// same scene"), on a host of its own: in a namespace with only its loopback no other
+// service on the machine is on the domain. The service is killed and restarted without
+// --run-id (a new default id); a paused heart runs beside it; the follower picks the
+// restarted cantilever, not the heart.
+TEST(SeveralHosts, FollowerWithoutARunIdFollowsTheRestartedServiceOfTheSameScene) {
+  if (geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces (ip netns)";
+  if (access(kIp.c_str(), X_OK) != 0) GTEST_SKIP() << kIp << " not found (Debian package iproute2)";
+  TempDir dir;
+  const std::string ns = "fiberfem-" + std::to_string(getpid() % 100000) + "-alone";
+  if (run_process({kIp, "netns", "add", ns}).exit_code != 0) GTEST_SKIP() << "cannot create a network namespace here";
+  struct Deleter {
+    std::string ns;
+    ~Deleter() { run_process({kIp, "netns", "del", ns}); }
+  } deleter{ns};  // declared before the processes: deleted after they are stopped
+  ASSERT_EQ(run_process({kIp, "-n", ns, "link", "set", "lo", "up"}).exit_code, 0);
+  auto on = [&](std::vector<std::string> args) {
+    std::vector<std::string> full = {kIp, "netns", "exec", ns, "env",
+                                     "CYCLONEDDS_URI=file://" + std::string(FIBERFEM_SOURCE_DIR) + "/configs/dds/loopback.xml"};
+    full.insert(full.end(), args.begin(), args.end());
+    return full;
+  };
+  auto service = std::make_unique<BackgroundProcess>(on({kBin, "serve", "--builtin", "cantilever", "--threads", "1", "--status-hz", "4"}),
+                                                     dir.file("serve-1.log"));
+  BackgroundProcess follower(on({kBin, "ctl", "--timeout", "60", "echo", "--follow"}), dir.file("follower.log"));
+  ASSERT_TRUE(wait_until([&] { return count_lines(follower.output(), "frame ") >= 3; }, 30)) << follower.output();
+  const std::string first_pid = std::to_string(service->pid());
+  EXPECT_NE(follower.output().find("following run demo-cantilever-"), std::string::npos) << follower.output();
+  EXPECT_NE(follower.output().find("-" + first_pid + ":"), std::string::npos) << follower.output();
+
+  service->signal(SIGKILL);
+  service->wait(10);
+  ASSERT_TRUE(wait_until([&] { return count_lines(follower.output(), "lost run ") == 1; }, 15)) << follower.output();
+  BackgroundProcess heart(on({kBin, "serve", "--builtin", "heart", "--threads", "1", "--paused", "--status-hz", "4"}), dir.file("heart.log"));
+  std::this_thread::sleep_for(1s);  // the heart is on the domain first
+  service = std::make_unique<BackgroundProcess>(on({kBin, "serve", "--builtin", "cantilever", "--threads", "1", "--status-hz", "4"}),
+                                                dir.file("serve-2.log"));
+  const std::string second_pid = std::to_string(service->pid());
+  ASSERT_TRUE(wait_until([&] { return count_lines(follower.output(), "following run ") == 2; }, 30)) << follower.output();
+  const std::string out = follower.output();
+  const std::string second = out.substr(out.rfind("following run "));
+  EXPECT_EQ(second.rfind("following run demo-cantilever-", 0), 0u) << second;
+  EXPECT_NE(second.find("-" + second_pid + ":"), std::string::npos) << "followed " << second << "; the new service is pid " << second_pid;
+  EXPECT_TRUE(wait_until([&] { return count_lines(follower.output(), "frame ") >= count_lines(out, "frame ") + 3; }, 15));
+  follower.stop();
+}
+
 }  // namespace
 }  // namespace fiberfem::testing
