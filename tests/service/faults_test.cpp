@@ -304,5 +304,14 @@ TEST_F(Faults, StalledSubscriberDoesNotSlowTheService) {
   EXPECT_GE(median(rate_stalled), 0.25 * median(rate_alone));
 }
 
+// --command-budget out of its range is refused with the option named, before DDS starts.
+TEST_F(Faults, CommandBudgetOutOfRangeIsRefused) {
+  for (const char* bad : {"0", "-1", "20000", "abc"}) {
+    const ProcessResult r = run_process({kBin, "serve", "--builtin", "cantilever", "--command-budget", bad, "--until", "0.01"});
+    EXPECT_NE(r.exit_code, 0) << bad;
+    EXPECT_NE(r.output.find("--command-budget"), std::string::npos) << bad << ": " << r.output;
+  }
+}
+
 }  // namespace
 }  // namespace fiberfem::testing
