@@ -5,7 +5,8 @@ every few wall seconds. Samples the service's resident memory (/proc/PID/status 
 its steps per second and energies (from its status on DDS) and reports:
 
   RSS at the start (after warm-up), end, max, and its slope (least squares, MB/hour);
-  steps/s: median of the first 10 % of samples against the last 10 % (drift, %);
+  steps/s: median of the first 10 % of samples against the last 10 % (drift, %), and the
+  same for the service's CPU time per step (independent of the machine's other load);
   kinetic + elastic energy: min and max; commands sent, accepted, unanswered.
 
     CYCLONEDDS_URI=file://$PWD/configs/dds/loopback.xml PYTHONPATH=clients/python \\
