@@ -18,6 +18,8 @@ std::string default_run_id(const std::string& scene) { return scene + "-" + host
 RunEndpoints::RunEndpoints(std::string run_id)
     : run_id_(std::move(run_id)), host_(hostname()), pp_(), topology_(pp_), state_(pp_), status_(pp_), ack_(pp_), commands_(pp_) {}
 
+RunEndpoints::~RunEndpoints() { dds_wait_for_acks(ack_.get(), DDS_SECS(1)); }
+
 void RunEndpoints::publish_topology(const TopologyData& t) {
   TopologyData b = t;  // sequences borrow these buffers while writing
   std::vector<char*> names;

@@ -50,6 +50,9 @@ class RunEndpoints {
  public:
   /// Joins the domain (CYCLONEDDS_URI). @throws dds::DdsError when DDS cannot start.
   explicit RunEndpoints(std::string run_id);
+  /// Waits up to a second for the matched readers to acknowledge the last answers (the
+  /// answer to a shutdown is written just before the service goes).
+  ~RunEndpoints();
 
   const std::string& run_id() const { return run_id_; }
   void publish_topology(const TopologyData& t);

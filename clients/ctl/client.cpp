@@ -252,6 +252,24 @@ void Client::await_command_reader(const std::string& run_id, Clock::time_point d
   }
   if (!command_reader_matched(run_id))
     throw std::runtime_error("the command reader of run '" + run_id + "' was not matched within the timeout (is it running?)");
+  // ... and once this client's ack reader has matched the run's ack writer: an answer
+  // written just before the service exits (shutdown) is kept only while it runs.
+  while (!ack_writer_matched(run_id) && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+}
+
+bool Client::ack_writer_matched(const std::string& run_id) const {
+  const auto p = participants_.find(run_id);
+  if (!ack_reader_ || p == participants_.end()) return false;
+  dds_instance_handle_t handles[256];
+  const dds_return_t n = dds_get_matched_publications(ack_reader_->get(), handles, 256);
+  for (dds_return_t i = 0; i < n && i < 256; ++i) {
+    dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(ack_reader_->get(), handles[i]);
+    if (!ep) continue;
+    const bool same = std::memcmp(ep->participant_key.v, p->second.v, sizeof p->second.v) == 0;
+    dds_builtintopic_free_endpoint(ep);
+    if (same) return true;
+  }
+  return false;
 }
 
 void Client::post(const std::string& run_id, const std::string& command_id, const std::string& kind, const std::string& args_json) {

@@ -131,6 +131,8 @@ class Client {
   std::map<std::string, std::string> gone_;         // runs whose status writer went, and how
   /// Whether the command writer has matched a reader of `run_id`'s participant.
   bool command_reader_matched(const std::string& run_id) const;
+  /// Whether the ack reader has matched the ack writer of `run_id`'s participant.
+  bool ack_writer_matched(const std::string& run_id) const;
   /// Waits until the command reader of `run_id`'s participant is matched. @throws on timeout.
   void await_command_reader(const std::string& run_id, Clock::time_point deadline);
   /// Writes one command under `id`.

@@ -152,7 +152,14 @@ TEST_F(Faults, KillNineRestartLoopLosesAtMostAFlushIntervalAndClientsFollow) {
     const archive::ArchiveReader first(dir_.file("run-1.h5"), /*follow=*/true);
     EXPECT_GT(first.steps().front(), 0);
   }
-  ASSERT_TRUE(client.send(run, "shutdown", "{}").accepted);
+  try {
+    // Steering the restarted run works (this client's first command since the restarts),
+    // then it shuts down cleanly.
+    ASSERT_TRUE(client.send(run, "set_gravity", R"({"gravity": [0, 0, -9.81]})").accepted);
+    ASSERT_TRUE(client.send(run, "shutdown", "{}").accepted);
+  } catch (const std::exception& e) {
+    FAIL() << e.what() << "\nservice:\n" << service->output();
+  }
   EXPECT_EQ(service->wait(20), 0) << service->output();
   ASSERT_TRUE(wait_until([&] { return parse_follow(ctl.output()).lost == kKills + 1; }, 10)) << ctl.output();
   for (const FollowLog& f : {parse_follow(ctl.output()), parse_follow(py.output())}) {
