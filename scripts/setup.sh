@@ -24,6 +24,8 @@ packages=(
   libglu1-mesa libxcursor1 libxft2 libxinerama1 libgl1 libfontconfig1
   # secure mode (docs/security.md): scripts/make_security.sh makes the CAs and identities
   openssl
+  # ip netns: the several-hosts test (tests/service/netns_test.cpp)
+  iproute2
 )
 
 missing=()

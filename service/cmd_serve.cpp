@@ -87,6 +87,10 @@ void add_serve_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--until", a->o.until_s, "Stop at this simulation time, s (default: run until shut down)")->check(CLI::NonNegativeNumber);
   cmd->add_flag("--surface-only", a->o.surface_only, "States carry the boundary nodes only");
   cmd->add_flag("--paused", a->o.start_paused, "Start paused (resume or step by command)");
+  cmd->add_option("--command-budget", a->o.command_budget_ms,
+                  "Wall time for commands at one step boundary, ms (at least one is handled; the rest wait for the next)")
+      ->check(CLI::Range(1e-3, 1e4))
+      ->capture_default_str();
   cmd->add_option("--archive", a->archive, "Record the run into this HDF5 archive (docs/archive.md; the scene key archive.path)");
   cmd->add_option("--flush-frames", a->flush_frames, "Flush the archive every N frames (archive.flush_frames, default 10)")
       ->check(CLI::Range(1, 100000));

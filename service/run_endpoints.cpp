@@ -18,6 +18,8 @@ std::string default_run_id(const std::string& scene) { return scene + "-" + host
 RunEndpoints::RunEndpoints(std::string run_id)
     : run_id_(std::move(run_id)), host_(hostname()), pp_(), topology_(pp_), state_(pp_), status_(pp_), ack_(pp_), commands_(pp_) {}
 
+RunEndpoints::~RunEndpoints() { dds_wait_for_acks(ack_.get(), DDS_SECS(1)); }
+
 void RunEndpoints::publish_topology(const TopologyData& t) {
   TopologyData b = t;  // sequences borrow these buffers while writing
   std::vector<char*> names;
@@ -90,25 +92,48 @@ void RunEndpoints::publish_status(const StatusData& d) {
   status_.write(st);
 }
 
+void RunEndpoints::write_ack(const std::string& command_id, const std::string& client_id, const Answer& a) {
+  std::string cid = command_id, client = client_id, reason = a.reason;
+  fiberfem_CommandAck ack{};
+  ack.run_id = run_id_.data();
+  ack.command_id = cid.data();
+  ack.client_id = client.data();
+  ack.accepted = a.accepted;
+  ack.reason = reason.data();
+  ack.frame = a.frame;
+  ack.parameter_version = a.parameter_version;
+  ack_.write(ack);
+}
+
 int RunEndpoints::handle_commands(const std::function<CommandReply(const std::string&, const std::string&, const std::string&)>& apply,
-                                  const std::function<std::pair<unsigned long, unsigned>()>& stamp) {
+                                  const std::function<std::pair<unsigned long, unsigned>()>& stamp,
+                                  std::chrono::nanoseconds budget) {
   int n = 0;
-  commands_.take([&](const fiberfem_Command& c, const dds_sample_info_t&) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto handle = [&](const fiberfem_Command& c, const dds_sample_info_t&) {
     if (dds::str(c.run_id) != run_id_) return;  // another run's
-    const CommandReply r = apply(dds::str(c.kind), dds::str(c.args), dds::str(c.command_id));
-    const auto [frame, version] = stamp();
-    std::string reason = r.reason;
-    fiberfem_CommandAck ack{};
-    ack.run_id = run_id_.data();
-    ack.command_id = c.command_id;
-    ack.client_id = c.client_id;
-    ack.accepted = r.accepted;
-    ack.reason = reason.data();
-    ack.frame = frame;
-    ack.parameter_version = version;
-    ack_.write(ack);
+    const std::string id = dds::str(c.command_id);
     ++n;
-  });
+    // Exactly once: a command id seen before (a client's resend) gets its first answer again.
+    if (const auto seen = answered_.find(id); seen != answered_.end()) {
+      ++duplicates_;
+      write_ack(id, dds::str(c.client_id), seen->second);
+      return;
+    }
+    const CommandReply r = apply(dds::str(c.kind), dds::str(c.args), id);
+    const auto [frame, version] = stamp();
+    const Answer a{r.accepted, r.reason, frame, version};
+    answered_[id] = a;
+    answered_order_.push_back(id);
+    if (answered_order_.size() > kRememberedCommands) {
+      answered_.erase(answered_order_.front());
+      answered_order_.pop_front();
+    }
+    write_ack(id, dds::str(c.client_id), a);
+  };
+  // One at a time, so that the budget is checked between commands.
+  while (commands_.take(handle, false, 1) > 0 && std::chrono::steady_clock::now() - t0 < budget) {
+  }
   return n;
 }
 

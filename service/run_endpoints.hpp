@@ -5,7 +5,9 @@
 
 #include "service/dds/bus.hpp"
 
+#include <deque>
 #include <functional>
+#include <unordered_map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -48,6 +50,9 @@ class RunEndpoints {
  public:
   /// Joins the domain (CYCLONEDDS_URI). @throws dds::DdsError when DDS cannot start.
   explicit RunEndpoints(std::string run_id);
+  /// Waits up to a second for the matched readers to acknowledge the last answers (the
+  /// answer to a shutdown is written just before the service goes).
+  ~RunEndpoints();
 
   const std::string& run_id() const { return run_id_; }
   void publish_topology(const TopologyData& t);
@@ -56,14 +61,34 @@ class RunEndpoints {
                      std::vector<float>& activation);
   void publish_status(const StatusData& s);
   /// Takes the commands addressed to this run, calls `apply(kind, args, id)` for each and
-  /// acknowledges it with the frame and parameter version `stamp()` gives after it.
-  /// @return the number of commands handled.
+  /// acknowledges it with the frame and parameter version `stamp()` gives after it. A
+  /// command whose id was already handled (one of the last kRememberedCommands) is not
+  /// applied again: its first acknowledgement is written again.
+  /// At least one command is handled, then more while less than `budget` of wall time has
+  /// passed (the rest wait for the next boundary: a flood of commands cannot starve steps).
+  /// @return the number of commands handled (applied or answered again).
   int handle_commands(const std::function<CommandReply(const std::string& kind, const std::string& args, const std::string& id)>& apply,
-                      const std::function<std::pair<unsigned long, unsigned>()>& stamp);
+                      const std::function<std::pair<unsigned long, unsigned>()>& stamp,
+                      std::chrono::nanoseconds budget = std::chrono::hours(1));
   /// Blocks until a command may be waiting or `timeout` passes.
   void wait_for_command(std::chrono::nanoseconds timeout) { commands_.wait(timeout); }
+  /// Commands received again under an id already handled (not applied again).
+  long duplicate_commands() const { return duplicates_; }
+  /// How many handled command ids are remembered for the duplicate check.
+  static constexpr size_t kRememberedCommands = 4096;
 
  private:
+  struct Answer {
+    bool accepted = false;
+    std::string reason;
+    unsigned long frame = 0;
+    unsigned parameter_version = 0;
+  };
+  std::unordered_map<std::string, Answer> answered_;  // by command id, the last kRememberedCommands
+  std::deque<std::string> answered_order_;
+  long duplicates_ = 0;
+  void write_ack(const std::string& command_id, const std::string& client_id, const Answer& a);
+
   std::string run_id_, host_;
   dds::Participant pp_;
   dds::Writer<fiberfem_MeshTopology> topology_;

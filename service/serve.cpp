@@ -76,6 +76,8 @@ void ServeOptions::validate() const {
   if (!(publish_hz > 0 && publish_hz <= 1000)) throw std::invalid_argument("publish_hz must be in (0, 1000]");
   if (!(status_hz > 0 && status_hz <= 100)) throw std::invalid_argument("status_hz must be in (0, 100]");
   if (!(until_s >= 0 && std::isfinite(until_s))) throw std::invalid_argument("until_s must be >= 0");
+  if (!(command_budget_ms > 0 && command_budget_ms <= 1e4))
+    throw std::invalid_argument("command_budget_ms must be in (0, 1e4], got " + std::to_string(command_budget_ms));
 }
 
 int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out) {
@@ -326,7 +328,8 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
 #endif
           return CommandReply{r.accepted, r.reason};
         },
-        [&] { return std::make_pair(static_cast<unsigned long>(rc.simulator().step_count()), rc.parameter_version()); });
+        [&] { return std::make_pair(static_cast<unsigned long>(rc.simulator().step_count()), rc.parameter_version()); },
+        std::chrono::nanoseconds(static_cast<long long>(options.command_budget_ms * 1e6)));
     if (handled) state_dirty = true;
     if (rc.topology_version() != topology_version) {
       bus->publish_topology(topology_of(rc, state_nodes));
@@ -342,9 +345,14 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
       break;
     }
 
-    // 2. Step (unless paused).
+    // 2. Step (unless paused, or in real time ahead of the wall clock: a command woke the
+    // wait early, and the step is not due yet).
+    auto ahead_s = [&] {
+      return (rc.simulator().time_s() - pace_sim) / options.real_time_factor - seconds_between(pace_wall, Clock::now());
+    };
+    const bool due = !options.realtime || ahead_s() <= 0;
     bool stepped = false;
-    if (rc.take_step_permission()) {
+    if (due && rc.take_step_permission()) {
       rc.before_step();
       last = rc.simulator().step();
 #ifdef FIBERFEM_HAVE_ARCHIVE
@@ -376,12 +384,14 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
 
     // 4. Pace: real time waits for the wall clock (listening for commands meanwhile);
     // paused waits for a command.
-    if (!stepped) {
+    if (!due) {
+      bus->wait_for_command(std::chrono::nanoseconds(static_cast<long long>(std::max(0.0, ahead_s()) * 1e9)));
+    } else if (!stepped) {
       bus->wait_for_command(std::chrono::milliseconds(20));
       pace_wall = Clock::now();
       pace_sim = rc.simulator().time_s();
     } else if (options.realtime) {
-      const double ahead = (rc.simulator().time_s() - pace_sim) / options.real_time_factor - seconds_between(pace_wall, Clock::now());
+      const double ahead = ahead_s();
       if (ahead > 0) {
         bus->wait_for_command(std::chrono::nanoseconds(static_cast<long long>(ahead * 1e9)));
       } else if (ahead < -0.25) {  // behind by more than 0.25 s: re-anchor (report, don't catch up)
@@ -398,7 +408,9 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
   if (options.status_line) std::fprintf(stderr, "\n");
   const double wall = seconds_between(t_start, Clock::now());
   out << "fiberfem serve: " << stop_reason << "; " << rc.simulator().step_count() << " steps, t = " << rc.simulator().time_s()
-      << " s in " << wall << " s wall, " << recovered << " steps recovered, " << failed << " failed\n";
+      << " s in " << wall << " s wall, " << recovered << " steps recovered, " << failed << " failed";
+  if (bus->duplicate_commands() > 0) out << ", " << bus->duplicate_commands() << " repeated commands answered again (not applied)";
+  out << "\n";
   return 0;
 }
 

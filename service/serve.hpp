@@ -22,6 +22,10 @@ struct ServeOptions {
   bool surface_only = false;  ///< States carry the boundary nodes only (topology.state_nodes).
   bool start_paused = false;  ///< Start paused (step or resume by command).
   bool status_line = false;   ///< Redraw one status line on stderr (a terminal).
+  /// Wall time spent on commands at one step boundary, ms, in (0, 1e4]: at least one is
+  /// handled, more while within it; the rest wait for the next boundary, so a flood of
+  /// commands does not starve the steps. Default 4.
+  double command_budget_ms = 4.0;
   /// Record from the start (the scene's `archive` key or --archive); start_recording
   /// and stop_recording commands control it while running (docs/archive.md).
   io::ArchiveSettings archive;

@@ -10,6 +10,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <csignal>
 #include <fstream>
 #include <cstdio>
@@ -33,8 +34,12 @@ struct CtlArgs {
   // status / echo
   bool watch = false, table = false;
   int count = 0;
-  // send
+  // send / flood
   std::string kind, args = "{}";
+  int window = 8;
+  // echo --follow
+  bool follow = false;
+  double lost_after_s = 3;
   // play
   std::string script, log_file;
 };
@@ -45,6 +50,39 @@ void print_status_line(const clients::RunStatus& s, bool same_line) {
               s.real_time_factor, s.step_ms, s.solver_iterations, s.solver_residual, s.inverted_elements, s.parameter_version,
               same_line ? "   " : "\n");
   std::fflush(stdout);
+}
+
+// echo --follow: frames of a run across service restarts and network cuts (the rule in
+// clients/ctl/client.hpp, RunFollower); "lost" and "following" lines say what happened.
+int follow_run(Client& client, const CtlArgs& a) {
+  const StopSignals stop_signals(/*term_too=*/false);
+  clients::RunFollower follower(client, a.run_id, milliseconds(static_cast<long>(a.lost_after_s * 1000)));
+  const auto timeout = std::chrono::duration<double>(a.timeout_s);
+  auto since_run = std::chrono::steady_clock::now();  // when a run was last followed
+  for (int shown = 0; !stop_signals.caught() && (a.count == 0 || shown < a.count);) {
+    const auto e = follower.next(milliseconds(200));
+    if (!e) {
+      if (follower.run_id().empty() && std::chrono::steady_clock::now() - since_run > timeout) {
+        std::cerr << "fiberfem ctl: no run to follow for " << a.timeout_s << " s\n";
+        return 4;
+      }
+      continue;
+    }
+    since_run = std::chrono::steady_clock::now();
+    if (e->kind == clients::RunFollower::Event::Kind::lost) {
+      std::printf("lost run %s: %s\n", e->run_id.c_str(), e->message.c_str());
+    } else if (e->kind == clients::RunFollower::Event::Kind::found) {
+      std::printf("following run %s: %s\n", e->run_id.c_str(), e->message.c_str());
+    } else {
+      const clients::State& st = *e->state;
+      std::printf("frame %lu t=%.4f s v%u: %zu nodes, node 0 at [%.6g, %.6g, %.6g] m\n", st.frame, st.time_s, st.parameter_version,
+                  st.positions.size() / 3, st.positions.size() ? st.positions[0] : 0.f, st.positions.size() ? st.positions[1] : 0.f,
+                  st.positions.size() ? st.positions[2] : 0.f);
+      ++shown;
+    }
+    std::fflush(stdout);
+  }
+  return 0;
 }
 
 int run_ctl(const std::string& what, CtlArgs& a) {
@@ -62,7 +100,21 @@ int run_ctl(const std::string& what, CtlArgs& a) {
                   s.state.c_str(), s.time_s, s.frames_per_second, s.real_time_factor, s.pid, s.replay ? " replay" : "");
     return 0;
   }
+  if (what == "echo" && a.follow) return follow_run(client, a);
   const std::string run = client.resolve_run(a.run_id, timeout);
+  if (what == "flood") {
+    const clients::FloodReport r = client.flood(run, a.kind, a.args, a.count, a.window, timeout);
+    std::vector<double> lat = r.latencies_ms;
+    std::sort(lat.begin(), lat.end());
+    const auto pct = [&](double p) { return lat.empty() ? 0.0 : lat[std::min(lat.size() - 1, static_cast<size_t>(p * static_cast<double>(lat.size())))]; };
+    std::string versions;
+    for (unsigned v : r.versions) versions += (versions.empty() ? "" : ",") + std::to_string(v);
+    std::printf("{\"run\": \"%s\", \"client\": \"%s\", \"sent\": %d, \"acked\": %d, \"accepted\": %d, \"duplicate_acks\": %d, \"resent\": %d, "
+                "\"seconds\": %.4f, \"commands_per_s\": %.1f, \"latency_ms_median\": %.3f, \"latency_ms_p99\": %.3f, \"versions\": [%s]}\n",
+                run.c_str(), client.client_id().c_str(), r.sent, r.acked, r.accepted, r.duplicate_acks, r.resent, r.seconds,
+                r.seconds > 0 ? r.acked / r.seconds : 0.0, pct(0.5), pct(0.99), versions.c_str());
+    return r.acked == r.sent && r.duplicate_acks <= r.resent ? 0 : 4;
+  }
   if (what == "status") {
     const StopSignals stop_signals(/*term_too=*/false);
     const bool tty = isatty(fileno(stdout)) != 0;
@@ -168,14 +220,25 @@ void add_ctl_command(CLI::App& app, int& exit_code) {
   status->add_option("--count", a->count, "Show this many status samples")->check(CLI::PositiveNumber);
   auto* echo = ctl->add_subcommand("echo", "Print the frames a run publishes");
   echo->add_option("--count", a->count, "Stop after this many frames (default: until Ctrl-C)")->check(CLI::PositiveNumber);
+  echo->add_flag("--follow", a->follow,
+                 "Follow the run across service restarts and network cuts (--run ID: that id; none: the only run, then the only run "
+                 "of its scene); --timeout bounds the time with no run to follow");
+  echo->add_option("--lost-after", a->lost_after_s, "With --follow: a run is lost after this long without a status, s")
+      ->check(CLI::Range(0.1, 600.0))
+      ->capture_default_str();
   auto* topo = ctl->add_subcommand("topology", "Print a run's topology (mesh, regions, fibers)");
   auto* send = ctl->add_subcommand("send", "Send a command and wait for its acknowledgement (docs/commands.md)");
   send->add_option("kind", a->kind, "Command kind, e.g. pause, apply_force, set_contraction")->required();
   send->add_option("args", a->args, "Arguments as a JSON object")->capture_default_str();
+  auto* flood = ctl->add_subcommand("flood", "Send COUNT commands with up to WINDOW unacknowledged; print a JSON report of the acks");
+  flood->add_option("kind", a->kind, "Command kind, e.g. set_gravity")->required();
+  flood->add_option("args", a->args, "Arguments as a JSON object")->capture_default_str();
+  flood->add_option("--count", a->count, "Commands to send")->check(CLI::Range(1, 10000000))->required();
+  flood->add_option("--window", a->window, "Commands in flight at most")->check(CLI::Range(1, 64))->capture_default_str();
   auto* play = ctl->add_subcommand("play", "Play a cycle script (docs/cycles.md) against a run");
   play->add_option("script", a->script, "Cycle script (YAML), e.g. configs/cycles/exercise.yaml")->required()->check(CLI::ExistingFile);
   play->add_option("--log", a->log_file, "Also write the log of actions here");
-  for (CLI::App* sub : {list, status, echo, topo, send, play}) {
+  for (CLI::App* sub : {list, status, echo, topo, send, flood, play}) {
     const std::string name = sub->get_name();
     sub->callback([a, name, &exit_code] {
       try {

@@ -4,8 +4,11 @@
 //             would drop a whole frame when one fragment is lost; keep-last 1 never
 //             blocks the writer on a slow reader, it replaces the frame)
 //   command   reliable, volatile, keep-all              (no command is lost)
-//   ack       reliable, transient-local, keep-last 64 per run (an answer written before
-//             the service discovered the asking client's reader still reaches it)
+//   ack       reliable, transient-local, keep-last 1024 per run, the last 64 for late
+//             joiners (an answer written before the service discovered the asking
+//             client's reader still reaches it); readers
+//             keep all: the acks of every client of a run share one instance, and a client
+//             that took its samples late under a flood of others' would lose its own
 //   status    reliable, volatile, keep-last 1, deadline, liveliness lease
 
 #include "service/dds/bus.hpp"
@@ -18,6 +21,12 @@ namespace {
 constexpr dds_duration_t kStateDeadline = DDS_SECS(2);
 constexpr dds_duration_t kStatusDeadline = DDS_SECS(2);
 constexpr dds_duration_t kLivelinessLease = DDS_SECS(3);
+// Acks a run keeps unacknowledged by a reader before the oldest goes: how far a client's
+// receive thread may lag under a flood of other clients' commands (64 lost acks on a
+// machine at load 12 with four clients of 8 commands in flight each; docs/reliability.md).
+constexpr int32_t kAckHistory = 1024;
+// Acks a client that joins late receives.
+constexpr int32_t kAckLateJoiners = 64;
 
 struct Qos {
   dds_qos_t* q = dds_create_qos();
@@ -42,7 +51,9 @@ void set_qos(dds_qos_t* q, Topic t) {
       break;
     case Topic::ack:
       dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
-      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 64);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, kAckHistory);
+      dds_qset_durability_service(q, 0, DDS_HISTORY_KEEP_LAST, kAckLateJoiners, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED,
+                                  DDS_LENGTH_UNLIMITED);
       break;
     case Topic::status:
       dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
@@ -110,6 +121,7 @@ dds_entity_t create_reader(const Participant& pp, dds_entity_t topic, Topic t) {
   Qos qos;
   set_qos(qos.q, t);
   if (t == Topic::state || t == Topic::status) dds_qset_deadline(qos.q, DDS_INFINITY);  // readers ask none
+  if (t == Topic::ack) dds_qset_history(qos.q, DDS_HISTORY_KEEP_ALL, DDS_LENGTH_UNLIMITED);
   return check(dds_create_reader(pp.get(), topic, qos.q, nullptr), (std::string("dds_create_reader on ") + topic_name(t)).c_str());
 }
 

@@ -12,6 +12,7 @@
 
 #include <dds/dds.h>
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 #include <string>
@@ -146,16 +147,18 @@ class Reader {
 
   /// Takes every available sample and calls fn(const T&, const dds_sample_info_t&) for
   /// each valid one (disposals and unregistrations have no data and are skipped, unless
-  /// `with_invalid` is set, when fn is called with the key fields only).
+  /// `with_invalid` is set, when fn is called with the key fields only), at most
+  /// `max_samples` of them (the rest stay for the next take).
   /// @return the number of samples passed to fn.
   template <class F>
-  int take(F&& fn, bool with_invalid = false) {
+  int take(F&& fn, bool with_invalid = false, int max_samples = 1 << 30) {
     constexpr int kBatch = 16;
     int n_total = 0;
-    for (;;) {
+    while (n_total < max_samples) {
       void* samples[kBatch] = {};
       dds_sample_info_t infos[kBatch];
-      const dds_return_t n = dds_take(reader_.get(), samples, infos, kBatch, kBatch);
+      const int want = std::min(kBatch, max_samples - n_total);
+      const dds_return_t n = dds_take(reader_.get(), samples, infos, static_cast<size_t>(want), static_cast<uint32_t>(want));
       if (n <= 0) {
         check(n, "dds_take");
         break;
@@ -171,7 +174,7 @@ class Reader {
           fn(*static_cast<const T*>(samples[i]), infos[i]);
           ++n_total;
         }
-      if (n < kBatch) break;
+      if (n < want) break;
     }
     return n_total;
   }

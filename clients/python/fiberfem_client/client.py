@@ -35,7 +35,9 @@ QOS = {
     "topology": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1)),
     "state": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
     "command": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepAll),
-    "ack": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(64)),
+    "ack": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1024),
+               Policy.DurabilityService(cleanup_delay=0, history=Policy.History.KeepLast(64), max_samples=-1,
+                                        max_instances=-1, max_samples_per_instance=-1)),
     "status": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
 }
 TOPIC_NAMES = {
@@ -97,16 +99,22 @@ class Client:
              for k, cls in (("topology", MeshTopology), ("state", MeshState), ("command", Command),
                             ("ack", CommandAck), ("status", ServiceStatus))}
         self._status = DataReader(self.dp, t["status"], qos=QOS["status"])
-        self._ack = DataReader(self.dp, t["ack"], qos=QOS["ack"])
+        # Keep all: the acks of every client of a run share one instance (service/dds/bus.cpp).
+        self._ack = DataReader(self.dp, t["ack"], qos=Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepAll))
         self._state = DataReader(self.dp, t["state"], qos=QOS["state"])
         self._topology = DataReader(self.dp, t["topology"], qos=QOS["topology"])
         self._command = DataWriter(self.dp, t["command"], qos=QOS["command"])
         self.runs: Dict[str, ServiceStatus] = {}
+        self._seen: Dict[str, float] = {}  # monotonic time of each run's newest status
+
+    def _note(self, s):
+        self.runs[s.run_id] = s
+        self._seen[s.run_id] = time.monotonic()
 
     def _poll_status(self):
         for s in self._status.take(N=64):
             if isinstance(s, ServiceStatus):
-                self.runs[s.run_id] = s
+                self._note(s)
 
     def discover(self, wait_s: float = 1.5) -> Dict[str, ServiceStatus]:
         """Runs seen on the domain within wait_s: {run_id: newest ServiceStatus}."""
@@ -140,7 +148,7 @@ class Client:
         while time.monotonic() < end:
             for s in self._status.take(N=64):
                 if isinstance(s, ServiceStatus):
-                    self.runs[s.run_id] = s
+                    self._note(s)
                     if s.run_id == run_id:
                         return s
             time.sleep(0.02)
@@ -202,11 +210,71 @@ class Client:
             raise FiberfemError(f"no service matched the command topic (is '{run_id}' running?)")
         self._next += 1
         cid = f"{self.client_id}-{self._next}"
-        self._command.write(Command(run_id=run_id, command_id=cid, client_id=self.client_id, kind=kind,
-                                    args=json.dumps(args or {})))
+        command = Command(run_id=run_id, command_id=cid, client_id=self.client_id, kind=kind, args=json.dumps(args or {}))
+        self._command.write(command)
+        written = time.monotonic()
         while time.monotonic() < end:
-            for a in self._ack.take(N=64):
+            for a in self._ack.take(N=256):
                 if isinstance(a, CommandAck) and a.run_id == run_id and a.command_id == cid:
                     return Ack(a.accepted, a.reason, a.frame, a.parameter_version)
+            if time.monotonic() - written >= 1.0:  # unanswered: again under the same id (applied once)
+                self._command.write(command)
+                written = time.monotonic()
             time.sleep(0.005)
         raise FiberfemError(f"no acknowledgement of '{kind}' from '{run_id}' in {wait_s} s")
+
+    def live(self, run_id: str, lost_after_s: float = 3.0) -> Optional[str]:
+        """None when run_id is live (a status within lost_after_s, not "stopped"), else why not."""
+        self._poll_status()
+        if run_id not in self._seen:
+            return "no status seen"
+        age = time.monotonic() - self._seen[run_id]
+        if age > lost_after_s:
+            return f"no status for {age:.1f} s"
+        if self.runs[run_id].state == "stopped":
+            return "it stopped"
+        return None
+
+    def follow(self, run_id: Optional[str] = None, lost_after_s: float = 3.0) -> Iterator[tuple]:
+        """Follows a run's states across service restarts and network cuts, forever.
+
+        Yields ("found", run_id, message), ("state", run_id, State), ("lost", run_id, why),
+        and ("waiting", None, "") about every 50 ms while no run is followed.
+        The rule (as `fiberfem ctl echo --follow`): given run_id, that run id whichever
+        service carries it (a service restarted with the same --run-id); given none, the
+        only live run, and after a loss the only live run of the same scene. A run is lost
+        after lost_after_s without a status, when it reports "stopped", or when another
+        process (pid, host) takes its run id (a restart noticed before the silence)."""
+        run, scene, who, last = None, None, None, -1
+        while True:
+            if run is None:
+                self._poll_status()
+                live = {r: s for r, s in self.runs.items() if self.live(r, lost_after_s) is None}
+                if run_id:
+                    picks = [run_id] if run_id in live else []
+                else:
+                    picks = [r for r, s in live.items() if scene is None or s.scene_name == scene]
+                if len(picks) == 1:
+                    run = picks[0]
+                    s = live[run]
+                    scene, who, last = s.scene_name, (s.pid, s.host), -1
+                    yield ("found", run, f"scene {s.scene_name} on {s.host} (pid {s.pid}), {s.state} at t = {s.time_s:.3f} s")
+                else:
+                    time.sleep(0.05)
+                    yield ("waiting", None, "")
+                continue
+            why = self.live(run, lost_after_s)
+            if why is None and (self.runs[run].pid, self.runs[run].host) != who:
+                s = self.runs[run]
+                why = f"restarted (pid {who[0]} on {who[1]}, now pid {s.pid} on {s.host})"
+            if why is not None:
+                self._state.take(N=64)  # the old service's last frames
+                yield ("lost", run, why)
+                run = None
+                continue
+            try:
+                st = self.next_state(run, last, wait_s=0.2)
+            except FiberfemError:
+                continue
+            last = st.frame
+            yield ("state", run, st)
