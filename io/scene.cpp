@@ -4,6 +4,7 @@
 #include "core/lv_ellipsoid.hpp"
 #include "core/fiber_fields.hpp"
 #include "io/fiber_file.hpp"
+#include "io/input_file.hpp"
 #include "io/mesh_io.hpp"
 #include "io/sha256.hpp"
 
@@ -32,7 +33,7 @@ struct Ctx {
       if (path.compare(0, o.size(), o) == 0 && (path.size() == o.size() || path[o.size()] == '.' || path[o.size()] == '['))
         throw SceneError(origin + ": --set " + path + ": " + what);
     const int line = at.IsDefined() && at.Mark().line >= 0 ? at.Mark().line + 1 : 0;
-    throw SceneError(origin + ":" + std::to_string(line) + ": " + path + ": " + what);
+    throw SceneError(origin + ":" + std::to_string(line) + ": " + (path.empty() ? "" : path + ": ") + what);
   }
 };
 
@@ -229,6 +230,10 @@ Eigen::Vector4d barycentric(const core::TetMesh& mesh, int e, const Vec3& p) {
   return {1 - l.sum(), l.x(), l.y(), l.z()};
 }
 
+// The largest generated mesh, cells (6 tetrahedra each for the box): beyond any mesh the
+// engine steps in real time, and a bound on the memory a scene file can ask for.
+constexpr double kMaxGeneratedCells = 2e6;
+
 core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base_dir, std::string& mesh_file) {
   if (!top.has("mesh")) ctx.fail(top.node(), "mesh", "missing (a generator or a file)");
   Map m(ctx, top["mesh"], "mesh",
@@ -270,6 +275,10 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
       if (r.has("longitudinal")) lv.longitudinal = integer(ctx, r["longitudinal"], r.sub("longitudinal"), 2, 100000);
       if (r.has("transmural")) lv.transmural = integer(ctx, r["transmural"], r.sub("transmural"), 1, 100000);
     }
+    const double cells = 1.0 * lv.circumferential * lv.longitudinal * lv.transmural;
+    if (cells > kMaxGeneratedCells)
+      ctx.fail(m["resolution"], "mesh.resolution",
+               "asks for " + std::to_string(static_cast<long long>(cells)) + " cells; at most 2000000 (circumferential x longitudinal x transmural)");
     try {
       return core::make_lv_ellipsoid(lv);
     } catch (const std::invalid_argument& e) {
@@ -286,6 +295,9 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
     const YAML::Node c = m["cells"];
     if (!c.IsSequence() || c.size() != 3) ctx.fail(c, "mesh.cells", "expected three integers");
     for (int i = 0; i < 3; ++i) spec.cells[static_cast<size_t>(i)] = integer(ctx, c[i], "mesh.cells[" + std::to_string(i) + "]", 1, 100000);
+    const double total = 1.0 * spec.cells[0] * spec.cells[1] * spec.cells[2];
+    if (total > kMaxGeneratedCells)
+      ctx.fail(c, "mesh.cells", "asks for " + std::to_string(static_cast<long long>(total)) + " cells; at most 2000000 (12 million elements)");
   }
   if (m.has("origin")) spec.origin_m = vec3(ctx, m["origin"], "mesh.origin");
   if ((spec.size_m.array() <= 0).any()) ctx.fail(m["size"], "mesh.size", "every edge length must be > 0 m");
@@ -415,6 +427,8 @@ std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::Tet
       if (st.has("file")) {
         const std::string path = resolve(text(ctx, st["file"], "fibers.strokes.file"), base_dir);
         files_read.push_back(path);
+        if (const std::string bad = input_file_problem(path); !bad.empty())
+          ctx.fail(st["file"], "fibers.strokes.file", path + " " + bad);
         std::ifstream in(path);
         if (!in) ctx.fail(st["file"], "fibers.strokes.file", "cannot open " + path);
         auto more = read_polylines(in, path);
@@ -458,6 +472,7 @@ std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::Tet
     // file: one vector per element, or per node (then interpolated sign-blind).
     const std::string path = resolve(text(ctx, f["file"], "fibers.file"), base_dir);
     files_read.push_back(path);
+    if (const std::string bad = input_file_problem(path); !bad.empty()) ctx.fail(f["file"], "fibers.file", path + " " + bad);
     std::ifstream in(path);
     if (!in) ctx.fail(f["file"], "fibers.file", "cannot open " + path);
     const std::vector<Vec3> v = read_fiber_vectors(in, path);
@@ -886,6 +901,7 @@ std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::T
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  if (const std::string bad = input_file_problem(path); !bad.empty()) throw SceneError(path + ": the scene file " + bad);
   std::ifstream f(path);
   if (!f) throw SceneError(path + ": cannot open the scene file");
   std::stringstream ss;

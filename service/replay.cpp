@@ -66,7 +66,7 @@ double number_arg(const YAML::Node& args, const char* key, double lo, double hi)
 
 void ReplayOptions::validate() const {
   if (path.empty()) throw std::invalid_argument("replay: no archive given");
-  if (!(rate > 0 && rate <= 1000)) throw std::invalid_argument("replay: rate must be in (0, 1000]");
+  if (!(rate > 0 && rate <= 1000)) throw std::invalid_argument("replay: --rate " + std::to_string(rate) + " must be in (0, 1000]");
   if (!(from_s >= 0 && std::isfinite(from_s))) throw std::invalid_argument("replay: from must be >= 0");
   if (!(status_hz > 0 && status_hz <= 100)) throw std::invalid_argument("replay: status_hz must be in (0, 100]");
 }

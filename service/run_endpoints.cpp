@@ -1,5 +1,7 @@
 #include "service/run_endpoints.hpp"
 
+#include "service/command_sample.hpp"
+
 #include <unistd.h>
 
 namespace fiberfem::service {
@@ -95,7 +97,14 @@ int RunEndpoints::handle_commands(const std::function<CommandReply(const std::st
   int n = 0;
   commands_.take([&](const fiberfem_Command& c, const dds_sample_info_t&) {
     if (dds::str(c.run_id) != run_id_) return;  // another run's
-    const CommandReply r = apply(dds::str(c.kind), dds::str(c.args), dds::str(c.command_id));
+    // A malformed sample is refused here, unseen by the run (and so not recorded).
+    CommandReply r;
+    try {
+      const DecodedCommand d = decode_command(c);
+      r = apply(d.kind, d.args, d.command_id);
+    } catch (const CommandSampleError& e) {
+      r = {false, e.what()};
+    }
     const auto [frame, version] = stamp();
     std::string reason = r.reason;
     fiberfem_CommandAck ack{};
