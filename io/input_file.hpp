@@ -7,9 +7,9 @@
 
 namespace fiberfem::io {
 
-/// What is wrong with reading `path` as an input file, or "" when nothing is: "does not
-/// exist", "is a directory, not a file", "is not a regular file", "cannot be read
-/// (permission denied)".
+/// What is wrong with reading `path` as an input file, or "" when nothing is: "it does
+/// not exist", "it is a directory, not a file", "it is not a regular file (...)", "it
+/// cannot be read (Permission denied)". Callers say "<path>: cannot open the X: <this>".
 std::string input_file_problem(const std::string& path);
 
 }  // namespace fiberfem::io

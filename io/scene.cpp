@@ -428,7 +428,7 @@ std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::Tet
         const std::string path = resolve(text(ctx, st["file"], "fibers.strokes.file"), base_dir);
         files_read.push_back(path);
         if (const std::string bad = input_file_problem(path); !bad.empty())
-          ctx.fail(st["file"], "fibers.strokes.file", path + " " + bad);
+          ctx.fail(st["file"], "fibers.strokes.file", "cannot open " + path + ": " + bad);
         std::ifstream in(path);
         if (!in) ctx.fail(st["file"], "fibers.strokes.file", "cannot open " + path);
         auto more = read_polylines(in, path);
@@ -472,7 +472,7 @@ std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::Tet
     // file: one vector per element, or per node (then interpolated sign-blind).
     const std::string path = resolve(text(ctx, f["file"], "fibers.file"), base_dir);
     files_read.push_back(path);
-    if (const std::string bad = input_file_problem(path); !bad.empty()) ctx.fail(f["file"], "fibers.file", path + " " + bad);
+    if (const std::string bad = input_file_problem(path); !bad.empty()) ctx.fail(f["file"], "fibers.file", "cannot open " + path + ": " + bad);
     std::ifstream in(path);
     if (!in) ctx.fail(f["file"], "fibers.file", "cannot open " + path);
     const std::vector<Vec3> v = read_fiber_vectors(in, path);
@@ -901,7 +901,7 @@ std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::T
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
-  if (const std::string bad = input_file_problem(path); !bad.empty()) throw SceneError(path + ": the scene file " + bad);
+  if (const std::string bad = input_file_problem(path); !bad.empty()) throw SceneError(path + ": cannot open the scene file: " + bad);
   std::ifstream f(path);
   if (!f) throw SceneError(path + ": cannot open the scene file");
   std::stringstream ss;

@@ -192,7 +192,7 @@ CycleScript parse_cycle_tree(const YAML::Node& root, const std::string& origin) 
 }  // namespace
 
 CycleScript load_cycle(const std::string& path) {
-  if (const std::string bad = io::input_file_problem(path); !bad.empty()) throw CycleError(path + ": the cycle script " + bad);
+  if (const std::string bad = io::input_file_problem(path); !bad.empty()) throw CycleError(path + ": cannot open the cycle script: " + bad);
   std::ifstream f(path);
   if (!f) throw CycleError(path + ": cannot open the cycle script");
   std::stringstream ss;
