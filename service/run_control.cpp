@@ -328,8 +328,13 @@ CommandResult RunControl::dispatch(const std::string& kind, const std::string& t
       nodes = {Args::as_node(v, "target.node", nn)};
     } else if (how == "nodes") {
       if (!v.IsSequence() || v.size() == 0) throw Reject("'target.nodes' must be a non-empty list of node indices");
-      for (size_t i = 0; i < v.size(); ++i)
-        nodes.push_back(Args::as_node(v[i], "target.nodes[" + std::to_string(i) + "]", nn));
+      std::vector<char> seen(static_cast<size_t>(nn), 0);
+      for (size_t i = 0; i < v.size(); ++i) {
+        const std::string key = "target.nodes[" + std::to_string(i) + "]";
+        nodes.push_back(Args::as_node(v[i], key, nn));
+        if (seen[static_cast<size_t>(nodes.back())]++)
+          throw Reject("'" + key + "' = " + std::to_string(nodes.back()) + " is listed twice (the force is shared among distinct nodes)");
+      }
     } else if (how == "node_set") {
       const std::string s = Args::as_text(v, "target.node_set");
       const auto it = mesh.node_sets().find(s);
