@@ -22,6 +22,8 @@ packages=(
   python3 python3-venv time
   # the gmsh wheel's runtime libraries (scripts/make_*.py regenerate the shipped meshes)
   libglu1-mesa libxcursor1 libxft2 libxinerama1 libgl1 libfontconfig1
+  # the fuzz-labelled test: clang, libFuzzer and the sanitizers (scripts/fuzz.sh)
+  clang libclang-rt-14-dev libomp-14-dev ccache
 )
 
 missing=()

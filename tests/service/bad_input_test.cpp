@@ -79,6 +79,12 @@ class BadInput : public ::testing::Test {
     dir_ = new TempDir();
     const auto f = [](const std::string& n) { return dir_->file(n); };
     write_file(f("tiny.yaml"), kTiny);
+    // Unreadable: mode 000 (root reads it anyway: that row runs as nobody through setpriv).
+    std::filesystem::permissions(dir_->file(""), std::filesystem::perms::owner_all | std::filesystem::perms::group_read |
+                                                     std::filesystem::perms::group_exec | std::filesystem::perms::others_read |
+                                                     std::filesystem::perms::others_exec);
+    write_file(f("locked.yaml"), kTiny);
+    std::filesystem::permissions(f("locked.yaml"), std::filesystem::perms::none);
     write_file(f("empty.yaml"), "");
     std::filesystem::create_directories(f("a-directory"));
     write_file(f("not-yaml.yaml"), "name: [unclosed\n  mesh: {\n");
@@ -95,7 +101,7 @@ class BadInput : public ::testing::Test {
     write_file(f("mesh-missing.yaml"), tiny_with("{generator: box, size: [0.1, 0.02, 0.02], cells: [2, 1, 1]}", "{file: nowhere.msh}"));
     write_file(f("mesh-dir.yaml"), tiny_with("{generator: box, size: [0.1, 0.02, 0.02], cells: [2, 1, 1]}", "{file: a-directory.msh}"));
     std::filesystem::create_directories(f("a-directory.msh"));
-    write_file(f("mesh-dev-zero.yaml"), tiny_with("{generator: box, size: [0.1, 0.02, 0.02], cells: [2, 1, 1]}", "{file: /dev/zero.msh}"));
+    write_file(f("fibers-dev-zero.yaml"), tiny_with("{uniform: [1, 0, 0]}", "{file: /dev/zero}"));
     write_file(f("truncated.msh"), "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n");
     write_file(f("mesh-truncated.yaml"), tiny_with("{generator: box, size: [0.1, 0.02, 0.02], cells: [2, 1, 1]}", "{file: truncated.msh}"));
     write_file(f("mesh-empty.yaml"), tiny_with("{generator: box, size: [0.1, 0.02, 0.02], cells: [2, 1, 1]}", "{file: empty.msh}"));
@@ -152,6 +158,7 @@ const std::vector<Row>& rows() {
       // Scene files.
       {"run SCENE", "scene file", "missing", {"run", "{D}/nowhere.yaml"}, {"nowhere.yaml", "does not exist"}},
       {"run SCENE", "scene file", "a directory", {"run", "{D}/a-directory"}, {"a-directory", "is a directory"}},
+      {"run SCENE", "scene file", "unreadable (mode 000)", {"{nobody}", "run", "{D}/locked.yaml"}, {"locked.yaml", "cannot be read"}},
       {"run SCENE", "scene file", "empty", {"run", "{D}/empty.yaml"}, {"empty.yaml", "mapping"}},
       {"run SCENE", "scene file", "not YAML", {"run", "{D}/not-yaml.yaml"}, {"not-yaml.yaml:", "YAML"}},
       {"run SCENE", "scene file", "a list, not a mapping", {"run", "{D}/list.yaml"}, {"list.yaml", "mapping"}},
@@ -167,7 +174,6 @@ const std::vector<Row>& rows() {
       // Mesh files.
       {"run SCENE", "mesh.file", "missing", {"run", "{D}/mesh-missing.yaml"}, {"mesh-missing.yaml:2", "nowhere.msh", "does not exist"}},
       {"run SCENE", "mesh.file", "a directory", {"run", "{D}/mesh-dir.yaml"}, {"mesh-dir.yaml:2", "a-directory.msh", "is a directory"}},
-      {"run SCENE", "mesh.file", "/dev/zero (endless)", {"run", "{D}/mesh-dev-zero.yaml"}, {"mesh-dev-zero.yaml:2", "/dev/zero"}},
       {"run SCENE", "mesh.file", "truncated gmsh", {"run", "{D}/mesh-truncated.yaml"}, {"mesh-truncated.yaml:2", "truncated.msh:"}},
       {"run SCENE", "mesh.file", "empty gmsh", {"run", "{D}/mesh-empty.yaml"}, {"mesh-empty.yaml:2", "empty.msh"}},
       // Fiber files.
@@ -176,6 +182,7 @@ const std::vector<Row>& rows() {
       {"run SCENE", "fibers.file", "NaN component", {"run", "{D}/fibers-nan.yaml"}, {"fibers-nan.txt:2", "non-finite", "nan 0 0"}},
       {"run SCENE", "fibers.file", "truncated line", {"run", "{D}/fibers-truncated.yaml"}, {"fibers-truncated.txt:2", "three numbers"}},
       {"run SCENE", "fibers.file", "empty", {"run", "{D}/fibers-empty.yaml"}, {"fibers-empty.txt", "no vectors"}},
+      {"run SCENE", "fibers.file", "/dev/zero (endless)", {"run", "{D}/fibers-dev-zero.yaml"}, {"fibers-dev-zero.yaml:7", "/dev/zero", "not a regular file"}},
       {"run SCENE", "fibers.file", "a directory", {"run", "{D}/fibers-dir.yaml"}, {"fibers-dir.yaml:7", "a-directory", "is a directory"}},
       // Command-line options.
       {"run", "--dt", "NaN", {"run", "{D}/tiny.yaml", "--dt", "nan"}, {"solver.dt", "expected a number"}},
@@ -217,6 +224,7 @@ const std::vector<Row>& rows() {
       // Cycle scripts (parsed before any run is looked for).
       {"ctl play", "SCRIPT", "missing", {"ctl", "play", "{D}/nowhere.yaml"}, {"nowhere.yaml", "does not exist"}},
       {"ctl play", "SCRIPT", "a directory", {"ctl", "play", "{D}/a-directory"}, {"a-directory", "is a directory"}},
+      {"ctl play", "SCRIPT", "/dev/zero (endless)", {"ctl", "play", "/dev/zero"}, {"/dev/zero", "not a regular file"}},
       {"ctl play", "SCRIPT", "empty", {"ctl", "play", "{D}/empty.yaml"}, {"empty.yaml", "mapping"}},
       {"ctl play", "actions", "empty list", {"ctl", "play", "{D}/cycle-no-actions.yaml"}, {"cycle-no-actions.yaml:1", "actions"}},
       {"ctl play", "actions[0].at", "NaN", {"ctl", "play", "{D}/cycle-nan.yaml"}, {"cycle-nan.yaml:2: action 1", "'at'", "finite"}},
@@ -238,6 +246,10 @@ TEST_F(BadInput, EveryEntryPointRefusesWithAClearMessage) {
   for (const Row& row : rows()) {
     std::vector<std::string> args = {FIBERFEM_BIN};
     for (const std::string& a : row.args) args.push_back(expand(a, d));
+    if (args[1] == "{nobody}") {  // as an ordinary user (root reads every file)
+      args.erase(args.begin() + 1);
+      if (geteuid() == 0) args.insert(args.begin(), {"/usr/bin/setpriv", "--reuid=65534", "--regid=65534", "--clear-groups"});
+    }
     // Loopback DDS for the commands that would start it (none should get that far).
     args.insert(args.begin(), {"/usr/bin/env", "CYCLONEDDS_URI=" FIBERFEM_DDS_URI, "ASAN_OPTIONS=abort_on_error=1"});
     const ProcessResult r = run_process(args);
