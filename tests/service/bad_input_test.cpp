@@ -129,7 +129,13 @@ class BadInput : public ::testing::Test {
     r = run_process({FIBERFEM_PYTHON, "-c",
                      "import h5py, shutil, sys; d = sys.argv[1]; shutil.copy(d + '/good.h5', d + '/version2.h5')\n"
                      "with h5py.File(d + '/version2.h5', 'r+') as f: f.attrs['format_version'] = 2\n"
-                     "with h5py.File(d + '/other.h5', 'w') as f: f['x'] = [1, 2, 3]\n",
+                     "with h5py.File(d + '/other.h5', 'w') as f: f['x'] = [1, 2, 3]\n"
+                     "shutil.copy(d + '/good.h5', d + '/bad-tets.h5')\n"
+                     "with h5py.File(d + '/bad-tets.h5', 'r+') as f: f['mesh/tets'][0, 0] = 1000\n"
+                     "shutil.copy(d + '/good.h5', d + '/bad-checkpoint.h5')\n"
+                     "with h5py.File(d + '/bad-checkpoint.h5', 'r+') as f:\n"
+                     "  e = f['checkpoints/header_end'][:]; at = int(e[-2]) if len(e) > 1 else 0\n"
+                     "  f['checkpoints/headers'][at:at + 8] = list(b'garbage!')\n",
                      dir_->file("")});
     ASSERT_EQ(r.exit_code, 0) << r.output;
     // Another scene's archive (12 elements there, 48 here): resuming it is a wrong mesh.
@@ -215,6 +221,8 @@ const std::vector<Row>& rows() {
       {"archive info", "RUN.h5", "not HDF5", {"archive", "info", "{D}/not-hdf5.h5"}, {"not-hdf5.h5", "not an HDF5 file"}},
       {"archive info", "RUN.h5", "format version 2", {"archive", "info", "{D}/version2.h5"}, {"version2.h5", "version 2"}},
       {"archive info", "RUN.h5", "truncated", {"archive", "info", "{D}/truncated.h5"}, {"truncated.h5"}},
+      {"archive info", "mesh/tets", "a node index out of range", {"archive", "info", "{D}/bad-tets.h5"}, {"bad-tets.h5", "mesh/tets[0] = 1000", "not a node index"}},
+      {"run --resume", "checkpoints/headers", "garbage bytes in the last checkpoint", {"run", "{D}/tiny.yaml", "--resume", "{D}/bad-checkpoint.h5"}, {"bad-checkpoint.h5", "checkpoint", "malformed"}},
       {"archive recover", "RUN.h5", "not HDF5", {"archive", "recover", "{D}/not-hdf5.h5"}, {"not-hdf5.h5", "not an HDF5 file"}},
       {"replay", "RUN.h5", "missing", {"replay", "{D}/nowhere.h5", "--exit-at-end"}, {"nowhere.h5"}},
       {"replay", "RUN.h5", "not HDF5", {"replay", "{D}/not-hdf5.h5", "--exit-at-end"}, {"not-hdf5.h5", "not an HDF5 file"}},
