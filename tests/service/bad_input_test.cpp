@@ -204,6 +204,11 @@ const std::vector<Row>& rows() {
       {"run", "--set", "NaN value", {"run", "{D}/tiny.yaml", "--set", "solver.dt=.nan"}, {"--set solver.dt", "finite"}},
       {"run", "--builtin", "unknown name", {"run", "--builtin", "nothing"}, {"nothing"}},
       {"run", "(unknown option)", "--speed 3", {"run", "{D}/tiny.yaml", "--speed", "3"}, {"--speed"}},
+      {"serve SCENE", "scene file", "NaN in the scene", {"serve", "{D}/nan-material.yaml", "--run-id", "bad-input-test"}, {"nan-material.yaml:6", "E_L", "finite"}},
+      {"serve", "--publish-hz", "0", {"serve", "{D}/tiny.yaml", "--publish-hz", "0"}, {"--publish-hz"}},
+      {"serve", "--real-time-factor", "inf", {"serve", "{D}/tiny.yaml", "--real-time-factor", "inf"}, {"--real-time-factor"}},
+      {"serve --resume", "RUN.h5", "not HDF5", {"serve", "{D}/tiny.yaml", "--resume", "{D}/not-hdf5.h5", "--run-id", "bad-input-test"}, {"not-hdf5.h5", "not an HDF5 file"}},
+      {"serve --resume", "RUN.h5", "another scene's archive (wrong mesh)", {"serve", "{D}/bigger.yaml", "--resume", "{D}/good.h5", "--run-id", "bad-input-test"}, {"--resume", "good.h5", "another scene"}},
       // Archives given to resume.
       {"run --resume", "RUN.h5", "missing", {"run", "{D}/tiny.yaml", "--resume", "{D}/nowhere.h5"}, {"nowhere.h5", "does not exist"}},
       {"run --resume", "RUN.h5", "a directory", {"run", "{D}/tiny.yaml", "--resume", "{D}/a-directory"}, {"a-directory", "is a directory"}},
