@@ -186,7 +186,46 @@ TEST(BadCommands, RefusedByTheLiveServiceWhichKeepsSteppingAndRecording) {
   const ProcessResult info = run_process({FIBERFEM_BIN, "archive", "info", h5});
   EXPECT_EQ(info.exit_code, 0) << info.output;
 
-  table << "\n" << refused << " of " << bad_commands().size() << " bad commands refused with the field named; the run stepped on "
+  // The same recording replayed: the replay's own commands refuse bad values too, and it
+  // keeps publishing.
+  const std::string rrun = run + "-replay";
+  BackgroundProcess replay({FIBERFEM_BIN, "replay", h5, "--run-id", rrun, "--loop", "--status-hz", "10"}, dir.file("replay.log"));
+  ASSERT_EQ(client.resolve_run(rrun, 20s), rrun) << read_file(dir.file("replay.log"));
+  const std::vector<BadCommand> replay_bad = {
+      {"replay: step count fractional", "step", R"({"count": 1.5})", {"'count'", "whole number"}},
+      {"replay: seek frame fractional", "seek", R"({"frame": 2.5})", {"'frame'", "whole number"}},
+      {"replay: seek time NaN", "seek", R"({"time": .nan})", {"'time'", "not finite"}},
+      {"replay: seek time negative", "seek", R"({"time": -1})", {"'time' = -1", "out of range"}},
+      {"replay: seek both time and frame", "seek", R"({"time": 0, "frame": 0})", {"exactly one of 'time'"}},
+      {"replay: rate out of range", "set_rate", R"({"rate": 1e9})", {"'rate' = 1e+09", "out of range"}},
+      {"replay: loop not a boolean", "loop", R"({"on": "maybe"})", {"'on'", "true or false"}},
+      {"replay: a live-run command", "set_gravity", R"({"gravity": [0, 0, 1]})", {"not a replay command"}},
+      {"replay: argument key a list", "seek", R"({[1]: 2})", {"argument names"}},
+  };
+  int replay_refused = 0;
+  for (const BadCommand& b : replay_bad) {
+    const clients::Ack ack = client.send(rrun, b.kind, b.args, 20s);
+    EXPECT_FALSE(ack.accepted) << b.field << ": " << ack.reason;
+    bool all = !ack.accepted;
+    for (const std::string& e : b.expect) {
+      const bool has = ack.reason.find(e) != std::string::npos;
+      EXPECT_TRUE(has) << b.field << ": the reason lacks '" << e << "': " << ack.reason;
+      all = all && has;
+    }
+    replay_refused += all;
+    table << "| " << b.field << " | `" << cell(b.kind) << "` | `" << cell(b.args) << "` | " << (ack.accepted ? "yes" : "no") << " | "
+          << cell(ack.reason, 400) << " |\n";
+  }
+  const auto r1 = client.status(rrun, 5s);
+  std::this_thread::sleep_for(500ms);
+  const auto r2 = client.status(rrun, 5s);
+  ASSERT_TRUE(r1 && r2);
+  EXPECT_NE(r2->frame, r1->frame) << "the replay stopped publishing";
+  EXPECT_TRUE(client.send(rrun, "shutdown", "{}").accepted);
+  EXPECT_EQ(replay.wait(30), 0) << read_file(dir.file("replay.log"));
+
+  table << "\n" << replay_refused << " of " << replay_bad.size() << " bad replay commands refused with the field named. "
+        << refused << " of " << bad_commands().size() << " bad commands refused with the field named; the run stepped on "
         << "(frame " << first->frame << " to " << s2->frame << "); the recording holds " << a.frames() << " frames and " << cmds.size()
         << " command records (" << refused_recorded << " refusals with their reasons; the " << (bad_commands().size() + 1 + 2 - cmds.size())
         << " samples the decoder refused never reach the run or the recording) and `fiberfem archive info` reads it (exit "
