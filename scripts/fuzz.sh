@@ -55,7 +55,7 @@ for t in "${targets[@]}"; do
   # Every input in the corpus runs first; then new ones for the given time. -timeout: an
   # input that takes longer (a hang) is a finding; -rss_limit_mb: so is one that makes a
   # reader allocate without bound.
-  if ! ASAN_OPTIONS=detect_leaks=0 "$fuzz_dir"/tests/fuzz/fuzz_"$t" "$work" "$corpus" -max_total_time="$seconds" -max_len=8192 \
+  if ! "$fuzz_dir"/tests/fuzz/fuzz_"$t" "$work" "$corpus" -max_total_time="$seconds" -max_len=8192 \
     -rss_limit_mb=2048 -timeout=10 -artifact_prefix="$fuzz_dir"/artifacts/"$t"- -print_final_stats=1 >"$log" 2>&1; then
     failed+=("$t")
     grep -E "ERROR|SUMMARY|Test unit written|==[0-9]+==" "$log" | head -n 20
@@ -66,7 +66,7 @@ for t in "${targets[@]}"; do
   grep -E "^#[0-9]+ +DONE" "$log" | tail -n 1 || true
   if [[ "${FIBERFEM_FUZZ_KEEP:-1}" == 1 ]]; then
     # Keep only inputs that add coverage to what the corpus already has.
-    ASAN_OPTIONS=detect_leaks=0 "$fuzz_dir"/tests/fuzz/fuzz_"$t" -merge=1 "$corpus" "$work" 2>&1 | grep -E "MERGE-OUTER: [0-9]+ new files" || true
+    "$fuzz_dir"/tests/fuzz/fuzz_"$t" -merge=1 "$corpus" "$work" 2>&1 | grep -E "MERGE-OUTER: [0-9]+ new files" || true
   fi
 done
 if [[ ${#failed[@]} -gt 0 ]]; then
