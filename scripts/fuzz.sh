@@ -55,7 +55,7 @@ for t in "${targets[@]}"; do
   # Every input in the corpus runs first; then new ones for the given time. -timeout: an
   # input that takes longer (a hang) is a finding; -rss_limit_mb: so is one that makes a
   # reader allocate without bound.
-  if ! "$fuzz_dir"/tests/fuzz/fuzz_"$t" "$work" "$corpus" -max_total_time="$seconds" -max_len=8192 \
+  if ! LSAN_OPTIONS="suppressions=$here/tests/fuzz/lsan.supp" "$fuzz_dir"/tests/fuzz/fuzz_"$t" "$work" "$corpus" -max_total_time="$seconds" -max_len=8192 \
     -rss_limit_mb=2048 -timeout=10 -artifact_prefix="$fuzz_dir"/artifacts/"$t"- -print_final_stats=1 >"$log" 2>&1; then
     failed+=("$t")
     grep -E "ERROR|SUMMARY|Test unit written|==[0-9]+==" "$log" | head -n 20
