@@ -22,8 +22,9 @@ out = sys.argv[1]
 doc = open("docs/bad-input.md").read()
 for name in ("files", "commands"):
     table = open(f"{out}/{name}.md").read().rstrip("\n")
-    doc = re.sub(rf"(<!-- begin generated {name} table -->\n).*?(\n<!-- end generated {name} table -->)",
-                 lambda m: m.group(1) + table + m.group(2), doc, flags=re.S)
+    doc, n = re.subn(rf"(<!-- begin generated {name} table -->\n).*?(<!-- end generated {name} table -->)",
+                     lambda m: m.group(1) + table + "\n" + m.group(2), doc, flags=re.S)
+    assert n == 1, f"docs/bad-input.md: no markers for the {name} table"
 open("docs/bad-input.md", "w").write(doc)
 PY
 echo "docs/bad-input.md: tables regenerated"
