@@ -1,6 +1,7 @@
 #include "io/fiber_file.hpp"
 
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
 
 namespace fiberfem::io {
@@ -16,12 +17,22 @@ std::string content(const std::string& line) {
 }
 
 core::Vec3 parse_triple(const std::string& text, const std::string& origin, int line) {
+  // strtod, not a stream: "nan" and "inf" read as numbers and are refused as such.
   std::istringstream ss(text);
   core::Vec3 v;
-  std::string extra;
-  if (!(ss >> v.x() >> v.y() >> v.z()) || (ss >> extra))
+  std::string word;
+  int n = 0;
+  bool numbers = true;
+  while (ss >> word) {
+    char* end = nullptr;
+    const double x = std::strtod(word.c_str(), &end);
+    if (n < 3 && end && *end == '\0') v[n] = x;
+    else numbers = false;
+    ++n;
+  }
+  if (!numbers || n != 3)
     throw FiberFileError(origin + ":" + std::to_string(line) + ": expected three numbers 'x y z', got '" + text + "'");
-  if (!v.allFinite()) throw FiberFileError(origin + ":" + std::to_string(line) + ": non-finite value");
+  if (!v.allFinite()) throw FiberFileError(origin + ":" + std::to_string(line) + ": non-finite value in '" + text + "'");
   return v;
 }
 

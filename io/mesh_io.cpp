@@ -1,5 +1,7 @@
 #include "io/mesh_io.hpp"
 
+#include "io/input_file.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -541,11 +543,15 @@ core::TetMesh read_mesh(const std::string& path, double scale) {
   const std::string ext = dot == std::string::npos ? "" : path.substr(dot);
   if (ext == ".node" || ext == ".ele") {
     const std::string base = path.substr(0, dot);
+    for (const std::string& f : {base + ".node", base + ".ele"})
+      if (const std::string bad = input_file_problem(f); !bad.empty()) throw MeshFileError(f + ": cannot open the mesh file: " + bad);
     std::ifstream node(base + ".node"), ele(base + ".ele");
     if (!node) throw MeshFileError(base + ".node: cannot open the mesh file");
     if (!ele) throw MeshFileError(base + ".ele: cannot open the mesh file");
     return read_tetgen(node, base + ".node", ele, base + ".ele", scale);
   }
+  if (ext == ".vtk" || ext == ".msh")
+    if (const std::string bad = input_file_problem(path); !bad.empty()) throw MeshFileError(path + ": cannot open the mesh file: " + bad);
   if (ext == ".vtk") {
     std::ifstream f(path);
     if (!f) throw MeshFileError(path + ": cannot open the mesh file");

@@ -4,6 +4,7 @@
 #include "core/lv_ellipsoid.hpp"
 #include "core/fiber_fields.hpp"
 #include "io/fiber_file.hpp"
+#include "io/input_file.hpp"
 #include "io/mesh_io.hpp"
 #include "io/sha256.hpp"
 
@@ -37,7 +38,7 @@ struct Ctx {
       if (path.compare(0, o.size(), o) == 0 && (path.size() == o.size() || path[o.size()] == '.' || path[o.size()] == '['))
         throw SceneError(origin + ": --set " + path + ": " + what);
     const int line = at.IsDefined() && at.Mark().line >= 0 ? at.Mark().line + 1 : 0;
-    throw SceneError(origin + ":" + std::to_string(line) + ": " + path + ": " + what);
+    throw SceneError(origin + ":" + std::to_string(line) + ": " + (path.empty() ? "" : path + ": ") + what);
   }
 };
 
@@ -259,6 +260,10 @@ Eigen::Vector4d barycentric(const core::TetMesh& mesh, int e, const Vec3& p) {
   return {1 - l.sum(), l.x(), l.y(), l.z()};
 }
 
+// The largest generated mesh, cells (6 tetrahedra each for the box): beyond any mesh the
+// engine steps in real time, and a bound on the memory a scene file can ask for.
+constexpr double kMaxGeneratedCells = 2e6;
+
 // A generator's cell count times the refinement factor, at least `lo`.
 int refined(int cells, double refine, int lo) { return std::max(lo, static_cast<int>(std::lround(cells * refine))); }
 
@@ -309,6 +314,11 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
     lv.circumferential = refined(lv.circumferential, refine, 6);
     lv.longitudinal = refined(lv.longitudinal, refine, 2);
     lv.transmural = refined(lv.transmural, refine, 1);
+    const double cells = 1.0 * lv.circumferential * lv.longitudinal * lv.transmural;
+    if (cells > kMaxGeneratedCells)
+      ctx.fail(m.has("resolution") ? m["resolution"] : m.node(), "mesh.resolution",
+               "asks for " + std::to_string(static_cast<long long>(cells)) + " cells" +
+                   (refine != 1 ? " (after mesh.refine)" : "") + "; at most 2000000 (circumferential x longitudinal x transmural)");
     try {
       return core::make_lv_ellipsoid(lv);
     } catch (const std::invalid_argument& e) {
@@ -327,6 +337,10 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
     for (int i = 0; i < 3; ++i) spec.cells[static_cast<size_t>(i)] = integer(ctx, c[i], "mesh.cells[" + std::to_string(i) + "]", 1, 100000);
   }
   for (int& c : spec.cells) c = refined(c, refine, 1);
+  if (const double total = 1.0 * spec.cells[0] * spec.cells[1] * spec.cells[2]; total > kMaxGeneratedCells)
+    ctx.fail(m.has("cells") ? m["cells"] : m.node(), "mesh.cells",
+             "asks for " + std::to_string(static_cast<long long>(total)) + " cells" +
+                 (refine != 1 ? " (after mesh.refine)" : "") + "; at most 2000000 (12 million elements)");
   if (m.has("origin")) spec.origin_m = vec3(ctx, m["origin"], "mesh.origin");
   if ((spec.size_m.array() <= 0).any()) ctx.fail(m["size"], "mesh.size", "every edge length must be > 0 m");
   return core::make_box(spec);
@@ -459,6 +473,8 @@ std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::Tet
       if (st.has("file")) {
         const std::string path = resolve(text(ctx, st["file"], "fibers.strokes.file"), base_dir);
         files_read.push_back(path);
+        if (const std::string bad = input_file_problem(path); !bad.empty())
+          ctx.fail(st["file"], "fibers.strokes.file", "cannot open " + path + ": " + bad);
         std::ifstream in(path);
         if (!in) ctx.fail(st["file"], "fibers.strokes.file", "cannot open " + path);
         auto more = read_polylines(in, path);
@@ -502,6 +518,7 @@ std::vector<Vec3> fibers(const Ctx& ctx, const YAML::Node& node, const core::Tet
     // file: one vector per element, or per node (then interpolated sign-blind).
     const std::string path = resolve(text(ctx, f["file"], "fibers.file"), base_dir);
     files_read.push_back(path);
+    if (const std::string bad = input_file_problem(path); !bad.empty()) ctx.fail(f["file"], "fibers.file", "cannot open " + path + ": " + bad);
     std::ifstream in(path);
     if (!in) ctx.fail(f["file"], "fibers.file", "cannot open " + path);
     const std::vector<Vec3> v = read_fiber_vectors(in, path);
@@ -955,6 +972,7 @@ std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::T
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {
+  if (const std::string bad = input_file_problem(path); !bad.empty()) throw SceneError(path + ": cannot open the scene file: " + bad);
   std::ifstream f(path);
   if (!f) throw SceneError(path + ": cannot open the scene file");
   std::stringstream ss;

@@ -26,6 +26,8 @@ packages=(
   openssl
   # ip netns: the several-hosts test (tests/service/netns_test.cpp)
   iproute2
+  # the fuzz-labelled test: clang, libFuzzer and the sanitizers (scripts/fuzz.sh)
+  clang libclang-rt-14-dev libomp-14-dev ccache
 )
 
 missing=()

@@ -281,7 +281,11 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
 #ifdef FIBERFEM_HAVE_ARCHIVE
       const archive::ArchiveReader from(o.resume_path);
       const size_t k = from.checkpoint_at_or_before(o.resume_time_s);  // inf: the last
-      sim.restore(from.read_checkpoint(k));
+      try {
+        sim.restore(from.read_checkpoint(k));
+      } catch (const std::invalid_argument& e) {  // another scene's archive
+        throw std::invalid_argument("--resume " + o.resume_path + ": " + e.what() + " (the archive is of another scene or mesh)");
+      }
       first_step = static_cast<int>(sim.step_count()) + 1;
       std::snprintf(line, sizeof line, "resume: from %s, checkpoint at t = %.6g s (step %ld)\n", o.resume_path.c_str(),
                     sim.time_s(), sim.step_count());

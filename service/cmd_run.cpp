@@ -123,8 +123,8 @@ void add_run_command(CLI::App& app, int& exit_code) {
   run->add_option("--builtin", a->builtin, "Built-in scene when no file is given: cantilever | heart")->capture_default_str();
   run->add_option("--set", o.overrides, "Override a scene key: key.path=value (repeatable)");
   run->add_flag("--static", o.force_static, "Solve for static equilibrium instead of time stepping");
-  run->add_option("--steps", o.steps, "Number of steps (instead of --until)")->check(CLI::PositiveNumber);
-  run->add_option("--until", o.until_s, "Simulated time, s (default: the scene's solver.until)")->check(CLI::PositiveNumber);
+  run->add_option("--steps", o.steps, "Number of steps (instead of --until)")->check(CLI::Range(1, 1000000000));
+  run->add_option("--until", o.until_s, "Simulated time, s (default: the scene's solver.until)")->check(CLI::Range(1e-9, 1e9));
   run->add_option("--report", o.report_path, "Write a JSON report here (docs/report-format.md)");
   run->add_flag("--compare-static", o.compare_static, "After a dynamic run, solve statically and compare the probes");
   // Shorthands for scene keys (each becomes a --set before the explicit ones).

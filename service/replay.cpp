@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <sstream>
 #include <csignal>
 #include <cstdio>
 #include <ostream>
@@ -57,16 +58,27 @@ double number_arg(const YAML::Node& args, const char* key, double lo, double hi)
   } catch (const YAML::Exception&) {
     throw Reject(std::string("'") + key + "' must be a number");
   }
-  if (!std::isfinite(v) || v < lo || v > hi)
-    throw Reject(std::string("'") + key + "' must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  if (!std::isfinite(v)) throw Reject(std::string("'") + key + "' is not finite");
+  if (v < lo || v > hi) {
+    std::ostringstream m;
+    m << "'" << key << "' = " << v << " is out of range [" << lo << ", " << hi << "]";
+    throw Reject(m.str());
+  }
   return v;
+}
+
+// A whole number in [lo, hi] (a count or a frame).
+long whole_arg(const YAML::Node& args, const char* key, double lo, double hi) {
+  const double v = number_arg(args, key, lo, hi);
+  if (v != std::floor(v)) throw Reject(std::string("'") + key + "' must be a whole number");
+  return static_cast<long>(v);
 }
 
 }  // namespace
 
 void ReplayOptions::validate() const {
   if (path.empty()) throw std::invalid_argument("replay: no archive given");
-  if (!(rate > 0 && rate <= 1000)) throw std::invalid_argument("replay: rate must be in (0, 1000]");
+  if (!(rate > 0 && rate <= 1000)) throw std::invalid_argument("replay: --rate " + std::to_string(rate) + " must be in (0, 1000]");
   if (!(from_s >= 0 && std::isfinite(from_s))) throw std::invalid_argument("replay: from must be >= 0");
   if (!(status_hz > 0 && status_hz <= 100)) throw std::invalid_argument("replay: status_hz must be in (0, 100]");
 }
@@ -149,6 +161,7 @@ int replay(const ReplayOptions& options, std::ostream& out) {
       if (!args.IsMap()) throw Reject("arguments must be a JSON object");
       auto allow = [&](std::initializer_list<const char*> keys) {
         for (const auto& kv : args) {
+          if (!kv.first.IsScalar()) throw Reject("argument names must be words, not lists or objects");
           const std::string k = kv.first.as<std::string>();
           if (std::none_of(keys.begin(), keys.end(), [&](const char* a) { return k == a; }))
             throw Reject("unknown argument '" + k + "' for " + kind);
@@ -163,7 +176,7 @@ int replay(const ReplayOptions& options, std::ostream& out) {
         paused = false, ordered_steps = 0, r.reason = "playing";
       } else if (kind == "step") {
         allow({"count"});
-        const long n = args["count"] ? static_cast<long>(number_arg(args, "count", 1, 1e6)) : 1;
+        const long n = args["count"] ? whole_arg(args, "count", 1, 1e6) : 1;
         paused = true, ordered_steps += n, r.reason = std::to_string(n) + " frames ordered, then paused";
       } else if (kind == "seek") {
         allow({"time", "frame"});
@@ -175,7 +188,7 @@ int replay(const ReplayOptions& options, std::ostream& out) {
           i = std::upper_bound(times.begin(), times.end(), t + 1e-9) - times.begin() - 1;  // last frame at or before t
           i = std::max<long>(0, i);
         } else {
-          const double fr = number_arg(args, "frame", 0, 1e15);
+          const double fr = static_cast<double>(whole_arg(args, "frame", 0, 1e15));
           i = std::lower_bound(steps.begin(), steps.end(), static_cast<long>(fr)) - steps.begin();
           if (i >= static_cast<long>(steps.size())) throw Reject("no frame " + std::to_string(static_cast<long>(fr)) + " (last is " + std::to_string(steps.back()) + ")");
         }

@@ -46,6 +46,7 @@ class Args {
     if (node_.IsNull()) node_ = YAML::Node(YAML::NodeType::Map);
     if (!node_.IsMap()) throw Reject("arguments must be a JSON object");
     for (const auto& kv : node_) {
+      if (!kv.first.IsScalar()) throw Reject("argument names must be words, not lists or objects");
       const std::string key = kv.first.as<std::string>();
       if (std::find(allowed_.begin(), allowed_.end(), key) == allowed_.end())
         throw Reject("unknown argument '" + key + "'" +
@@ -90,6 +91,16 @@ class Args {
       throw Reject(os.str());
     }
     return v;
+  }
+  /// A node index: a whole number in [0, num_nodes).
+  static int as_node(const YAML::Node& n, const std::string& k, int num_nodes) {
+    const double v = as_number(n, k, 0, num_nodes - 1);
+    if (v != std::floor(v)) throw Reject("'" + k + "' must be a whole number (a node index)");
+    return static_cast<int>(v);
+  }
+  static std::string as_text(const YAML::Node& n, const std::string& k) {
+    if (!n.IsScalar()) throw Reject("'" + k + "' must be a string");
+    return n.as<std::string>();
   }
   static Vec3 as_vec3(const YAML::Node& n, const std::string& k) {
     if (!n.IsSequence() || n.size() != 3) throw Reject("'" + k + "' must be a list of three numbers");
@@ -202,6 +213,8 @@ CommandResult RunControl::apply(const std::string& kind, const std::string& args
     return r;
   } catch (const Reject& e) {
     return {false, e.what()};
+  } catch (const YAML::Exception& e) {  // a conversion no check above foresaw
+    return {false, "arguments of '" + kind + "': " + e.msg};
   } catch (const std::exception& e) {  // the engine's or the scene parser's refusal
     return {false, e.what()};
   }
@@ -307,18 +320,23 @@ CommandResult RunControl::dispatch(const std::string& kind, const std::string& t
     const YAML::Node t = a["target"];
     if (!t.IsMap() || t.size() != 1)
       throw Reject("'target' must be an object with exactly one of node, nodes, node_set, region, point");
-    const std::string how = t.begin()->first.as<std::string>();
+    const std::string how = Args::as_text(t.begin()->first, "target's key");
     const YAML::Node v = t.begin()->second;
     std::vector<int> nodes;
     const int nn = mesh.num_nodes();
     if (how == "node") {
-      nodes = {static_cast<int>(Args::as_number(v, "target.node", 0, nn - 1))};
+      nodes = {Args::as_node(v, "target.node", nn)};
     } else if (how == "nodes") {
       if (!v.IsSequence() || v.size() == 0) throw Reject("'target.nodes' must be a non-empty list of node indices");
-      for (size_t i = 0; i < v.size(); ++i)
-        nodes.push_back(static_cast<int>(Args::as_number(v[i], "target.nodes[" + std::to_string(i) + "]", 0, nn - 1)));
+      std::vector<char> seen(static_cast<size_t>(nn), 0);
+      for (size_t i = 0; i < v.size(); ++i) {
+        const std::string key = "target.nodes[" + std::to_string(i) + "]";
+        nodes.push_back(Args::as_node(v[i], key, nn));
+        if (seen[static_cast<size_t>(nodes.back())]++)
+          throw Reject("'" + key + "' = " + std::to_string(nodes.back()) + " is listed twice (the force is shared among distinct nodes)");
+      }
     } else if (how == "node_set") {
-      const std::string s = v.as<std::string>();
+      const std::string s = Args::as_text(v, "target.node_set");
       const auto it = mesh.node_sets().find(s);
       if (it == mesh.node_sets().end()) {
         std::vector<std::string> sets;
@@ -327,7 +345,7 @@ CommandResult RunControl::dispatch(const std::string& kind, const std::string& t
       }
       nodes = it->second;
     } else if (how == "region") {
-      const std::string s = v.as<std::string>();
+      const std::string s = Args::as_text(v, "target.region");
       const auto it = std::find(names.begin(), names.end(), s);
       if (it == names.end()) throw Reject("no region '" + s + "' (regions: " + join(names) + ")");
       const int r = static_cast<int>(it - names.begin());

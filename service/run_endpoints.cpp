@@ -1,5 +1,7 @@
 #include "service/run_endpoints.hpp"
 
+#include "service/command_sample.hpp"
+
 #include <unistd.h>
 
 namespace fiberfem::service {
@@ -120,7 +122,14 @@ int RunEndpoints::handle_commands(const std::function<CommandReply(const std::st
       write_ack(id, dds::str(c.client_id), seen->second);
       return;
     }
-    const CommandReply r = apply(dds::str(c.kind), dds::str(c.args), id);
+    // A malformed sample is refused here, unseen by the run (and so not recorded).
+    CommandReply r;
+    try {
+      const DecodedCommand d = decode_command(c);
+      r = apply(d.kind, d.args, d.command_id);
+    } catch (const CommandSampleError& e) {
+      r = {false, e.what()};
+    }
     const auto [frame, version] = stamp();
     const Answer a{r.accepted, r.reason, frame, version};
     answered_[id] = a;

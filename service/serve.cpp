@@ -91,8 +91,12 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     const size_t k = from.checkpoint_at_or_before(options.resume_time_s);  // inf: the last
     std::string params;
     const core::SimulatorCheckpoint cp = from.read_checkpoint(k, &params);
-    if (params.find("scene_yaml") != std::string::npos) rc.restore_parameter_state(params);
-    rc.simulator().restore(cp);
+    try {
+      if (params.find("scene_yaml") != std::string::npos) rc.restore_parameter_state(params);
+      rc.simulator().restore(cp);
+    } catch (const std::invalid_argument& e) {  // another scene's archive, or its parameters
+      throw std::invalid_argument("--resume " + options.resume_path + ": " + e.what() + " (the archive is of another scene or mesh)");
+    }
     out << "fiberfem serve: resumed from " << options.resume_path << " at t = " << rc.simulator().time_s() << " s (step "
         << rc.simulator().step_count() << ")\n";
 #else

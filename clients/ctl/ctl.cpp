@@ -87,6 +87,9 @@ int follow_run(Client& client, const CtlArgs& a) {
 
 int run_ctl(const std::string& what, CtlArgs& a) {
   const milliseconds timeout(static_cast<long>(a.timeout_s * 1000));
+  // A bad script is reported before looking for a run (no run needed to learn it is bad).
+  clients::CycleScript script;
+  if (what == "play") script = clients::load_cycle(a.script);
   Client client;
   if (what == "list") {
     const auto runs = client.discover(milliseconds(static_cast<long>(a.wait_s * 1000)));
@@ -181,7 +184,6 @@ int run_ctl(const std::string& what, CtlArgs& a) {
     return 0;
   }
   if (what == "play") {
-    clients::CycleScript script = clients::load_cycle(a.script);
     if (a.log_file.empty()) return clients::play_cycle(client, run, std::move(script), std::cout);
     std::ofstream log(a.log_file);
     if (!log) throw std::runtime_error("cannot write the log " + a.log_file);
@@ -236,7 +238,7 @@ void add_ctl_command(CLI::App& app, int& exit_code) {
   flood->add_option("--count", a->count, "Commands to send")->check(CLI::Range(1, 10000000))->required();
   flood->add_option("--window", a->window, "Commands in flight at most")->check(CLI::Range(1, 64))->capture_default_str();
   auto* play = ctl->add_subcommand("play", "Play a cycle script (docs/cycles.md) against a run");
-  play->add_option("script", a->script, "Cycle script (YAML), e.g. configs/cycles/exercise.yaml")->required()->check(CLI::ExistingFile);
+  play->add_option("script", a->script, "Cycle script (YAML), e.g. configs/cycles/exercise.yaml")->required();
   play->add_option("--log", a->log_file, "Also write the log of actions here");
   for (CLI::App* sub : {list, status, echo, topo, send, flood, play}) {
     const std::string name = sub->get_name();

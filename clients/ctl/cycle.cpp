@@ -1,5 +1,7 @@
 #include "clients/ctl/cycle.hpp"
 
+#include "io/input_file.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -14,8 +16,11 @@ namespace {
 using namespace std::chrono_literals;
 
 [[noreturn]] void fail(const std::string& where, const YAML::Node& at, const std::string& what) {
+  // `where` is "FILE" or "FILE: action N": the line goes after the file name.
   const int line = at.IsDefined() && at.Mark().line >= 0 ? at.Mark().line + 1 : 0;
-  throw CycleError(where + ":" + std::to_string(line) + ": " + what);
+  const size_t action = where.rfind(": action ");
+  if (action == std::string::npos) throw CycleError(where + ":" + std::to_string(line) + ": " + what);
+  throw CycleError(where.substr(0, action) + ":" + std::to_string(line) + where.substr(action) + ": " + what);
 }
 
 std::string flow(const YAML::Node& n) {
@@ -29,30 +34,52 @@ std::string flow(const YAML::Node& n) {
 double number(const std::string& where, const YAML::Node& n, const std::string& key, double lo, double hi) {
   double v = 0;
   try {
+    if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "");
     v = n.as<double>();
   } catch (const YAML::Exception&) {
     fail(where, n, "'" + key + "' must be a number");
   }
-  if (!std::isfinite(v) || v < lo || v > hi)
-    fail(where, n, "'" + key + "' must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  if (!std::isfinite(v)) fail(where, n, "'" + key + "' must be finite");
+  if (v < lo || v > hi) {
+    std::ostringstream m;
+    m << "'" << key << "' = " << v << " must be in [" << lo << ", " << hi << "]";
+    fail(where, n, m.str());
+  }
   return v;
 }
+
+// A scalar as text (a list or mapping where a word belongs is an error naming the key).
+std::string word(const std::string& where, const YAML::Node& n, const std::string& key) {
+  if (!n.IsScalar()) fail(where, n, "'" + key + "' must be a word or number, not a list or mapping");
+  return n.as<std::string>();
+}
+
+// A whole number in [lo, hi].
+int whole(const std::string& where, const YAML::Node& n, const std::string& key, int lo, int hi) {
+  const double v = number(where, n, key, lo, hi);
+  if (v != std::floor(v)) fail(where, n, "'" + key + "' must be a whole number");
+  return static_cast<int>(v);
+}
+
+// Every action's events together (repeats and ramp steps expanded): a script is played
+// against a live run, one acknowledged command at a time.
+constexpr size_t kMaxEvents = 100000;
 
 // The command of an action: `command: KIND` + `args: {...}`, or one key that is the kind.
 void command_of(const std::string& where, const YAML::Node& a, const std::vector<std::string>& timing, std::string& kind,
                 YAML::Node& args) {
   if (a["command"]) {
-    kind = a["command"].as<std::string>();
+    kind = word(where, a["command"], "command");
     args = a["args"] ? a["args"] : YAML::Node(YAML::NodeType::Map);
     for (const auto& kv : a) {
-      const std::string k = kv.first.as<std::string>();
+      const std::string k = word(where, kv.first, "a key");
       if (k != "command" && k != "args" && std::find(timing.begin(), timing.end(), k) == timing.end())
         fail(where, kv.first, "unknown key '" + k + "' beside command");
     }
     return;
   }
   for (const auto& kv : a) {
-    const std::string k = kv.first.as<std::string>();
+    const std::string k = word(where, kv.first, "a key");
     if (std::find(timing.begin(), timing.end(), k) != timing.end()) continue;
     if (!kind.empty()) fail(where, kv.first, "two commands in one action ('" + kind + "' and '" + k + "')");
     kind = k;
@@ -64,6 +91,10 @@ void command_of(const std::string& where, const YAML::Node& a, const std::vector
 
 }  // namespace
 
+namespace {
+CycleScript parse_cycle_tree(const YAML::Node& root, const std::string& origin);
+}  // namespace
+
 CycleScript parse_cycle(const std::string& yaml_text, const std::string& origin) {
   YAML::Node root;
   try {
@@ -71,21 +102,30 @@ CycleScript parse_cycle(const std::string& yaml_text, const std::string& origin)
   } catch (const YAML::ParserException& e) {
     throw CycleError(origin + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
   }
+  try {
+    return parse_cycle_tree(root, origin);
+  } catch (const YAML::Exception& e) {  // a conversion the checks above did not foresee
+    throw CycleError(origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
+  }
+}
+
+namespace {
+CycleScript parse_cycle_tree(const YAML::Node& root, const std::string& origin) {
   if (!root.IsMap()) throw CycleError(origin + ": expected a mapping with name, actions");
   CycleScript s;
   for (const auto& kv : root) {
-    const std::string k = kv.first.as<std::string>();
+    const std::string k = word(origin, kv.first, "a key");
     if (k != "name" && k != "time" && k != "on_reject" && k != "actions")
       fail(origin, kv.first, "unknown key '" + k + "' (allowed: name, time, on_reject, actions)");
   }
-  s.name = root["name"] ? root["name"].as<std::string>() : origin;
+  s.name = root["name"] ? word(origin, root["name"], "name") : origin;
   if (root["time"]) {
-    const std::string t = root["time"].as<std::string>();
+    const std::string t = word(origin, root["time"], "time");
     if (t != "script" && t != "run") fail(origin, root["time"], "time must be script (from the start of playing) or run");
     s.absolute_time = t == "run";
   }
   if (root["on_reject"]) {
-    const std::string r = root["on_reject"].as<std::string>();
+    const std::string r = word(origin, root["on_reject"], "on_reject");
     if (r != "stop" && r != "continue") fail(origin, root["on_reject"], "on_reject must be stop or continue");
     s.stop_on_reject = r == "stop";
   }
@@ -107,8 +147,8 @@ CycleScript parse_cycle(const std::string& yaml_text, const std::string& origin)
       }
       if (!a["until"] && !a["times"]) fail(where, a, "'every' needs 'until' (s) or 'times'");
       const double until = a["until"] ? number(where, a["until"], "until", t, 1e9) : 1e18;
-      const int times = a["times"] ? static_cast<int>(number(where, a["times"], "times", 1, 100000)) : 1000000;
-      if (a["every"].as<std::string>() == "beat") {
+      const int times = a["times"] ? whole(where, a["times"], "times", 1, 100000) : 1000000;
+      if (a["every"].IsScalar() && a["every"].as<std::string>() == "beat") {
         CycleEvent e{t, kind, flow(args), "action " + std::to_string(i + 1) + " (every beat)"};
         e.every_beat = true;
         e.repeat_until_s = until;
@@ -120,6 +160,7 @@ CycleScript parse_cycle(const std::string& yaml_text, const std::string& origin)
       int n = 0;
       for (double tk = t; tk <= until + 1e-9 && n < times; tk = t + every * ++n) {
         if (n >= 100000) fail(where, a, "repeats more than 100000 times");
+        if (s.events.size() >= kMaxEvents) fail(where, a, "the script has more than 100000 events in all");
         s.events.push_back({tk, kind, flow(args), "action " + std::to_string(i + 1) + " (" + std::to_string(n + 1) + ")"});
       }
       continue;
@@ -130,10 +171,11 @@ CycleScript parse_cycle(const std::string& yaml_text, const std::string& origin)
       const double t0 = number(where, a["from"], "from", 0, 1e9), t1 = number(where, a["to"], "to", t0, 1e9);
       const YAML::Node r = a["ramp"];
       if (!r.IsMap() || !r["key"] || !r["from"] || !r["to"]) fail(where, r, "ramp needs key, from, to");
-      const std::string key = r["key"].as<std::string>();
+      const std::string key = word(where, r["key"], "ramp.key");
       const double v0 = number(where, r["from"], "ramp.from", -1e12, 1e12), v1 = number(where, r["to"], "ramp.to", -1e12, 1e12);
-      const int steps = a["steps"] ? static_cast<int>(number(where, a["steps"], "steps", 1, 10000)) : 10;
+      const int steps = a["steps"] ? whole(where, a["steps"], "steps", 1, 10000) : 10;
       for (int k = 0; k <= steps; ++k) {
+        if (s.events.size() >= kMaxEvents) fail(where, a, "the script has more than 100000 events in all");
         const double w = static_cast<double>(k) / steps;
         YAML::Node ak = YAML::Clone(args);
         ak[key] = v0 + w * (v1 - v0);
@@ -147,8 +189,10 @@ CycleScript parse_cycle(const std::string& yaml_text, const std::string& origin)
   std::stable_sort(s.events.begin(), s.events.end(), [](const CycleEvent& a, const CycleEvent& b) { return a.time_s < b.time_s; });
   return s;
 }
+}  // namespace
 
 CycleScript load_cycle(const std::string& path) {
+  if (const std::string bad = io::input_file_problem(path); !bad.empty()) throw CycleError(path + ": cannot open the cycle script: " + bad);
   std::ifstream f(path);
   if (!f) throw CycleError(path + ": cannot open the cycle script");
   std::stringstream ss;

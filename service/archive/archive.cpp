@@ -78,9 +78,9 @@ struct Section {
 Section section(const json& header, const std::vector<double>& data, const std::string& name) {
   for (const auto& s : header.at("layout"))
     if (s.at("name") == name) {
-      const size_t off = s.at("offset"), n = s.at("count");
-      if (off + n > data.size()) throw std::runtime_error("archive: checkpoint section '" + name + "' runs past its data");
-      return {data.data() + off, n};
+      const std::int64_t off = s.at("offset"), n = s.at("count");
+      if (off < 0 || n < 0 || static_cast<size_t>(off) > data.size() || static_cast<size_t>(n) > data.size() - static_cast<size_t>(off)) throw std::runtime_error("archive: checkpoint section '" + name + "' runs past its data");
+      return {data.data() + off, static_cast<size_t>(n)};
     }
   throw std::runtime_error("archive: checkpoint has no section '" + name + "'");
 }
@@ -607,8 +607,30 @@ ArchiveReader::ArchiveReader(const std::string& path, bool follow) : impl_(std::
   d.cp_data_end = open("checkpoints/data_end");
   d.cp_data = open("checkpoints/data");
   const hsize_t N = static_cast<hsize_t>(h.rest_positions.cols());
-  if (d.positions.dims().size() != 3 || d.positions.dims()[1] != N)
+  const auto bad = [&](const std::string& what) { throw std::runtime_error(where + ": " + what); };
+  if (rest.size() % 3 != 0 || N == 0) bad("mesh/rest_positions holds " + std::to_string(rest.size()) + " numbers, not 3 per node");
+  if (!h.rest_positions.allFinite()) bad("mesh/rest_positions has a non-finite coordinate");
+  if (tets.empty() || tets.size() % 4 != 0) bad("mesh/tets holds " + std::to_string(tets.size()) + " indices, not 4 per element");
+  for (size_t i = 0; i < tets.size(); ++i)
+    if (tets[i] < 0 || static_cast<hsize_t>(tets[i]) >= N)
+      bad("mesh/tets[" + std::to_string(i) + "] = " + std::to_string(tets[i]) + " is not a node index (the mesh has " + std::to_string(N) + ")");
+  for (size_t i = 0; i < tris.size(); ++i)
+    if (tris[i] < 0 || static_cast<hsize_t>(tris[i]) >= N)
+      bad("mesh/boundary_triangles[" + std::to_string(i) + "] = " + std::to_string(tris[i]) + " is not a node index");
+  const size_t E = h.tets.size();
+  if (h.regions.size() != E) bad("mesh/regions has " + std::to_string(h.regions.size()) + " entries for " + std::to_string(E) + " elements");
+  if (h.fibers.size() != E || fib.size() != 3 * E) bad("mesh/fibers holds " + std::to_string(fib.size()) + " numbers for " + std::to_string(E) + " elements");
+  if (h.fixed_dofs.size() != 3 * N) bad("mesh/fixed_dofs has " + std::to_string(h.fixed_dofs.size()) + " entries for " + std::to_string(N) + " nodes");
+  if (C.size() % 36 != 0 || h.stiffness_pa.size() != h.density_kg_m3.size())
+    bad("materials/stiffness and materials/density disagree on the number of regions");
+  for (int r : h.regions)
+    if (r < 0 || static_cast<size_t>(r) >= h.density_kg_m3.size()) bad("mesh/regions names region " + std::to_string(r) + ", which has no material");
+  if (d.positions.dims().size() != 3 || d.positions.dims()[1] != N || d.positions.dims()[2] != 3)
     throw std::runtime_error(where + ": frames/positions does not match the mesh's " + std::to_string(N) + " nodes");
+  for (const auto* ds : {&d.velocities, &d.displacement})
+    if (*ds && (ds->dims().size() != 3 || ds->dims()[1] != N || ds->dims()[2] != 3))
+      bad("frames/velocities or frames/displacement does not match the mesh's " + std::to_string(N) + " nodes");
+  if (d.energies.dims().size() != 2 || d.energies.dims()[1] != 2) bad("frames/energies is not 2 numbers per frame");
   refresh();
 }
 
@@ -672,10 +694,13 @@ std::vector<CommandRecord> ArchiveReader::commands() const {
   const auto time = d.cmd_time.read_rows<double>(0, static_cast<hsize_t>(n));
   const auto end = d.cmd_end.read_rows<std::int64_t>(0, static_cast<hsize_t>(n));
   if (d.follow) d.cmd_bytes.refresh();
+  for (long i = 0; i < n; ++i)
+    if (end[static_cast<size_t>(i)] < (i ? end[static_cast<size_t>(i - 1)] : 0))
+      throw std::runtime_error("archive: commands/record_end is not ascending at record " + std::to_string(i) + " in '" + path_ + "'");
   const auto bytes = n > 0 ? d.cmd_bytes.read_rows<std::uint8_t>(0, static_cast<hsize_t>(end.back())) : std::vector<std::uint8_t>{};
   std::vector<CommandRecord> out;
   std::int64_t begin = 0;
-  for (long i = 0; i < n; ++i) {
+  for (long i = 0; i < n; ++i) try {
     const json r = json::parse(bytes.begin() + begin, bytes.begin() + end[static_cast<size_t>(i)]);
     begin = end[static_cast<size_t>(i)];
     CommandRecord c;
@@ -687,6 +712,8 @@ std::vector<CommandRecord> ArchiveReader::commands() const {
     c.accepted = r.at("accepted");
     c.reason = r.at("reason");
     out.push_back(std::move(c));
+  } catch (const json::exception& e) {
+    throw std::runtime_error("archive: command record " + std::to_string(i) + " in '" + path_ + "' is malformed: " + e.what());
   }
   return out;
 }
@@ -717,6 +744,11 @@ size_t ArchiveReader::checkpoint_at_or_before(double time_s) const {
   return best;
 }
 
+namespace {
+// The checkpoint in a header (JSON) and its data. @throws json::exception when malformed.
+core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>& data, std::string* parameter_state);
+}  // namespace
+
 core::SimulatorCheckpoint ArchiveReader::read_checkpoint(size_t k, std::string* parameter_state) const {
   Impl& d = *impl_;
   const std::vector<CheckpointInfo> cps = checkpoints();
@@ -725,15 +757,26 @@ core::SimulatorCheckpoint ArchiveReader::read_checkpoint(size_t k, std::string* 
   const hsize_t n = static_cast<hsize_t>(cps.size());
   const auto hend = d.cp_header_end.read_rows<std::int64_t>(0, n);
   const auto dend = d.cp_data_end.read_rows<std::int64_t>(0, n);
-  const hsize_t h0 = k == 0 ? 0 : static_cast<hsize_t>(hend[k - 1]), h1 = static_cast<hsize_t>(hend[k]);
-  const hsize_t d0 = k == 0 ? 0 : static_cast<hsize_t>(dend[k - 1]), d1 = static_cast<hsize_t>(dend[k]);
+  const std::int64_t hb0 = k == 0 ? 0 : hend[k - 1], db0 = k == 0 ? 0 : dend[k - 1];
+  if (hb0 < 0 || hend[k] < hb0 || db0 < 0 || dend[k] < db0)
+    throw std::runtime_error("archive: checkpoint " + std::to_string(k) + " in '" + path_ + "' has bad extents (header_end, data_end)");
+  const hsize_t h0 = static_cast<hsize_t>(hb0), h1 = static_cast<hsize_t>(hend[k]);
+  const hsize_t d0 = static_cast<hsize_t>(db0), d1 = static_cast<hsize_t>(dend[k]);
   if (d.follow) {
     d.cp_header.refresh();
     d.cp_data.refresh();
   }
   const auto hb = d.cp_header.read_rows<std::uint8_t>(h0, h1 - h0);
   const std::vector<double> data = d.cp_data.read_rows<double>(d0, d1 - d0);
-  const json h = json::parse(hb.begin(), hb.end());
+  try {
+    return checkpoint_of(json::parse(hb.begin(), hb.end()), data, parameter_state);
+  } catch (const json::exception& e) {
+    throw std::runtime_error("archive: checkpoint " + std::to_string(k) + " in '" + path_ + "' is malformed: " + e.what());
+  }
+}
+
+namespace {
+core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>& data, std::string* parameter_state) {
   core::SimulatorCheckpoint c;
   c.time_s = h.at("time_s");
   c.step_count = h.at("step_count");
@@ -781,6 +824,7 @@ core::SimulatorCheckpoint ArchiveReader::read_checkpoint(size_t k, std::string* 
   if (parameter_state) *parameter_state = h.at("parameter_state");
   return c;
 }
+}  // namespace
 
 // ---------------------------------------------------------------------------- sidecars
 

@@ -3,6 +3,8 @@
 /// (Debian 1.10) and the few operations the run archive needs. Every failure becomes an
 /// h5::Error naming the file, dataset or attribute; HDF5's own error printing is off.
 
+#include "io/input_file.hpp"
+
 #include <hdf5.h>
 
 #include <array>
@@ -119,6 +121,7 @@ class File {
   /// Opens an existing file.
   static File open(const std::string& path, Mode mode) {
     silence_errors();
+    if (const std::string bad = io::input_file_problem(path); !bad.empty()) throw Error("cannot open '" + path + "': " + bad);
     if (H5Fis_hdf5(path.c_str()) <= 0) throw Error("'" + path + "' is not an HDF5 file (or cannot be read)");
     Handle fapl = latest_format_access();
     unsigned flags = mode == Mode::write ? H5F_ACC_RDWR : H5F_ACC_RDONLY;
