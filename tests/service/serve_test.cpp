@@ -15,7 +15,11 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <thread>
+
+#include <unistd.h>
 
 namespace fiberfem::testing {
 namespace {
@@ -288,21 +292,38 @@ TEST_F(Serve, PythonClientSendsCommandsAndReceivesStatesAsArrays) {
 }
 
 // A third-party tool (the `cyclonedds` CLI of the PyPI wheel, a different DDS build) sees
-// the topics and decodes a state sample through XTypes.
+// the topics and decodes a state sample through XTypes. On a domain of its own (the
+// loopback profile with a numbered domain): with other tests' Python clients on the shared
+// domain the tool finds two type objects for MeshState (the Python binding's and the C
+// one) and stops to ask which to use.
 TEST_F(Serve, ThirdPartyCycloneddsToolListsTopicsAndReadsAState) {
   const std::string tool = std::string(FIBERFEM_SOURCE_DIR) + "/.venv/bin/cyclonedds";
   if (!std::filesystem::exists(tool)) GTEST_FAIL() << tool << " missing: run scripts/setup.sh";
+  const int domain = 100 + static_cast<int>(getpid() % 120);  // ports 7400 + 250 d stay below 65536
+  {
+    std::ifstream in(std::string(FIBERFEM_DDS_URI).substr(std::string("file://").size()));
+    std::stringstream text;
+    text << in.rdbuf();
+    std::string xml = text.str();
+    const std::string any = "Domain Id=\"any\"";
+    ASSERT_NE(xml.find(any), std::string::npos) << "the loopback profile changed";
+    xml.replace(xml.find(any), any.size(), "Domain Id=\"" + std::to_string(domain) + "\"");
+    std::ofstream(dir_.file("domain.xml")) << xml;
+  }
+  struct RestoreUri {
+    ~RestoreUri() { setenv("CYCLONEDDS_URI", FIBERFEM_DDS_URI, 1); }
+  } restore;
+  setenv("CYCLONEDDS_URI", ("file://" + dir_.file("domain.xml")).c_str(), 1);
+  const std::string id = std::to_string(domain);
   const std::string run = unique("thirdparty");
   auto service = start(run, {"--builtin", "cantilever"});
   Client client;
   ASSERT_EQ(client.resolve_run(run, 20s), run) << service->output();
-  const ProcessResult ls = run_process({"timeout", "30", tool, "ls", "--suppress-progress-bar", "--color", "none"});
+  const ProcessResult ls = run_process({"timeout", "30", tool, "ls", "-i", id, "--suppress-progress-bar", "--color", "none"});
   for (const char* topic : {"fiberfem_mesh_topology", "fiberfem_mesh_state", "fiberfem_command", "fiberfem_command_ack", "fiberfem_status"})
     EXPECT_NE(ls.output.find(topic), std::string::npos) << topic << "\n" << ls.output;
-  // --qos scan-random: other tests on the domain may hold state readers with other QoS
-  // (the tool would stop to ask which one to copy); any matched endpoint's QoS will do.
-  const ProcessResult sub = run_process({"timeout", "12", tool, "subscribe", "fiberfem_mesh_state", "--suppress-progress-bar",
-                                         "--color", "none", "--qos", "scan-random"});
+  const ProcessResult sub = run_process({"timeout", "12", tool, "subscribe", "fiberfem_mesh_state", "-i", id,
+                                         "--suppress-progress-bar", "--color", "none"});
   EXPECT_NE(sub.output.find("MeshState("), std::string::npos) << sub.output;
   EXPECT_NE(sub.output.find("run_id='" + run + "'"), std::string::npos) << sub.output.substr(0, 2000);
 }
