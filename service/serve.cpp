@@ -160,7 +160,12 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
   long steps_in_period = 0;
   double sim_t_period = rc.simulator().time_s();
   const auto t_start = Clock::now();
-  auto t_period = t_start, t_last_state = t_start - std::chrono::hours(1);
+  auto t_period = t_start, t_last_state = t_start - std::chrono::hours(1), t_tokens = t_start;
+  // States are rate-limited by a token bucket (publish_hz tokens a second, at most two
+  // kept): a strict minimum interval lost every other frame when the steps came at the
+  // publish rate (real time at 60 steps/s and 60 Hz: a step a little early by the wall
+  // clock was held back to the next one, 30 frames/s measured).
+  double state_tokens = 1.0;
   auto pace_wall = t_start;
   double pace_sim = rc.simulator().time_s();
   bool state_dirty = true;
@@ -377,12 +382,15 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
 
     // 3. Publish the state at most publish_hz (and at least every second, for the deadline).
     const double since_state = seconds_between(t_last_state, now);
-    if ((state_dirty && since_state >= 1.0 / options.publish_hz) || since_state >= 1.0) {
+    state_tokens = std::min(2.0, state_tokens + seconds_between(t_tokens, now) * options.publish_hz);
+    t_tokens = now;
+    if ((state_dirty && state_tokens >= 1.0) || since_state >= 1.0) {
       const auto p0 = Clock::now();
       publish_state();
       pub_ms.push_back(seconds_between(p0, Clock::now()) * 1e3);
       t_last_state = now;
       state_dirty = false;
+      state_tokens = std::max(0.0, state_tokens - 1.0);
     }
     if (seconds_between(t_period, now) >= 1.0 / options.status_hz) publish_status(rc.paused() ? "paused" : state_name);
 
