@@ -339,11 +339,51 @@ int render_live(CLI::App& cmd, RenderArgs& a) {
   const auto state_nodes = topo->state_nodes;
   const double until = a.until;
   const long max_frames = a.live_frames;
-  f.next = [client, run, rest, state_nodes, last, shown, until, max_frames, skipped](core::Positions& x, std::vector<double>& act, double& t,
-                                                                                   long& step) mutable {
+  // Follows the run across restarts of its service (the rule of clients::RunFollower,
+  // docs/ctl.md: the run id given, else the only live run and then the only one of the
+  // same scene): a run that comes back with the same mesh is drawn on; one with another
+  // mesh, or none within kComeBack, ends the render.
+  static constexpr auto kComeBack = std::chrono::seconds(60);
+  auto follower = std::make_shared<clients::RunFollower>(*client, a.run_id.empty() ? run : a.run_id);
+  const unsigned num_nodes = topo->num_nodes, num_elements = topo->num_elements;
+  int founds = 0;
+  f.next = [client, follower, rest, state_nodes, last, shown, until, max_frames, skipped, num_nodes, num_elements, founds](
+               core::Positions& x, std::vector<double>& act, double& t, long& step) mutable {
     if (max_frames > 0 && shown >= max_frames) return false;
-    const auto s = client->next_state(run, 10s, last);
-    if (!s) return false;  // the run stopped publishing
+    auto give_up = std::chrono::steady_clock::now() + kComeBack;
+    std::optional<clients::State> s;
+    while (!s) {
+      const auto ev = follower->next(500ms);
+      if (!ev) {
+        if (std::chrono::steady_clock::now() > give_up) {
+          std::printf("render: no run to follow for %lld s\n", static_cast<long long>(kComeBack.count()));
+          return false;
+        }
+        continue;
+      }
+      switch (ev->kind) {
+        case clients::RunFollower::Event::Kind::found: {
+          // The first is the run whose topology is drawn; a later one is a restart, with
+          // a topology of its own.
+          const auto t2 = founds++ == 0 ? std::optional<clients::Topology>() : client->topology(ev->run_id, 10s);
+          if (founds > 1 && (!t2 || t2->num_nodes != num_nodes || t2->num_elements != num_elements)) {
+            std::printf("render: run %s has another mesh: stopping (start the render anew)\n", ev->run_id.c_str());
+            return false;
+          }
+          std::printf("following run %s: %s\n", ev->run_id.c_str(), ev->message.c_str());
+          last = -1;
+          break;
+        }
+        case clients::RunFollower::Event::Kind::lost:
+          std::printf("lost run %s: %s\n", ev->run_id.c_str(), ev->message.c_str());
+          give_up = std::chrono::steady_clock::now() + kComeBack;
+          break;
+        case clients::RunFollower::Event::Kind::state:
+          s = ev->state;
+          break;
+      }
+      std::fflush(stdout);
+    }
     if (last >= 0 && static_cast<long>(s->frame) > last + 1) *skipped += static_cast<long>(s->frame) - last - 1;
     last = static_cast<long>(s->frame);
     x = rest;
@@ -356,6 +396,8 @@ int render_live(CLI::App& cmd, RenderArgs& a) {
     act.assign(s->activation.begin(), s->activation.end());
     t = s->time_s, step = static_cast<long>(s->frame);
     ++shown;
+    std::printf("frame %ld t=%.4f s\n", step, t);
+    std::fflush(stdout);
     return until <= 0 || t <= until + 1e-9;
   };
   const int rc = render_feed(cmd, a, f);

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -183,6 +184,33 @@ TEST_F(Faults, KillNineRestartLoopLosesAtMostAFlushIntervalAndClientsFollow) {
 // command increments the parameter version: the acks' versions are exactly v0+1 .. v0+N,
 // and the archive logs each command id once); a repeated command id is answered again, not
 // applied again; the step rate keeps within a generous band of the unloaded one.
+// The live renderer is a follower too: `fiberfem render --live --run ID` draws on across a
+// kill -9 and restart of the service under the same run id (the new service's topology
+// checked against the mesh drawn), and every frame asked for is written.
+TEST_F(Faults, LiveRendererFollowsARestartedService) {
+  if (run_process({kBin, "render", "--help"}).exit_code != 0) GTEST_SKIP() << "fiberfem built without the renderer";
+  const std::string run = unique("rendered");
+  auto service = serve(run, "serve-a.log", {"--builtin", "cantilever", "--status-hz", "4"});
+  constexpr int kFrames = 120;
+  BackgroundProcess render({kBin, "render", "--live", "--run", run, "--frames", std::to_string(kFrames), "--width", "96", "--out",
+                            dir_.file("frames")},
+                           dir_.file("render.log"));
+  ASSERT_TRUE(wait_until([&] { const FollowLog f = parse_follow(render.output()); return f.found == 1 && f.frames_after_found[0] >= 5; }, 30))
+      << render.output();
+  service->signal(SIGKILL);
+  service->wait(10);
+  service = serve(run, "serve-b.log", {"--builtin", "cantilever", "--status-hz", "4"});
+  ASSERT_EQ(render.wait(90), 0) << render.output() << "\nservice:\n" << service->output();
+  const FollowLog f = parse_follow(render.output());
+  EXPECT_EQ(f.found, 2) << render.output();
+  EXPECT_EQ(f.lost, 1) << render.output();
+  ASSERT_EQ(f.frames_after_found.size(), 2u);
+  EXPECT_GE(f.frames_after_found[1], 5) << "no frame drawn from the restarted service\n" << render.output();
+  int pngs = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir_.file("frames"))) pngs += e.path().extension() == ".png";
+  EXPECT_EQ(pngs, kFrames);
+}
+
 TEST_F(Faults, CommandFloodFromFourClientsAppliesEachCommandOnceAndKeepsTheFrameRate) {
   constexpr int kClients = 4, kEach = 600;
   const std::string run = unique("flood");
