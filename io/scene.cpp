@@ -343,7 +343,12 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
                  (refine != 1 ? " (after mesh.refine)" : "") + "; at most 2000000 (12 million elements)");
   if (m.has("origin")) spec.origin_m = vec3(ctx, m["origin"], "mesh.origin");
   if ((spec.size_m.array() <= 0).any()) ctx.fail(m["size"], "mesh.size", "every edge length must be > 0 m");
-  return core::make_box(spec);
+  try {
+    return core::make_box(spec);
+  } catch (const std::invalid_argument& e) {  // e.g. cells so flat that an element is degenerate
+    const std::string what = e.what();
+    ctx.fail(top["mesh"], "mesh", what.rfind("mesh: ", 0) == 0 ? what.substr(6) : what);
+  }
 }
 
 // Applies "a.b[2].c=value" to the tree (YAML::Node handles are references into it).
