@@ -4,18 +4,20 @@
 
 namespace fiberfem::core {
 
-void ElementCaches::build(const Model& model) {
+void ElementCaches::build(const Model& model, bool with_stiffness) {
   const int ne = model.mesh.num_elements();
   X.resize(static_cast<size_t>(ne));
   Dm_inv.resize(static_cast<size_t>(ne));
-  K.resize(static_cast<size_t>(ne));
+  K.clear();
+  if (with_stiffness) K.resize(static_cast<size_t>(ne));
 #pragma omp parallel for schedule(static)
   for (int e = 0; e < ne; ++e) {
     const size_t i = static_cast<size_t>(e);
     X[i] = gather(model.mesh.rest_positions(), model.mesh.tets()[i]);
     Dm_inv[i] = rest_shape_inverse(X[i]);
-    K[i] = element_stiffness(X[i], model.region_materials[static_cast<size_t>(model.mesh.regions()[i])],
-                             model.fibers[i]);
+    if (with_stiffness)
+      K[i] = element_stiffness(X[i], model.region_materials[static_cast<size_t>(model.mesh.regions()[i])],
+                               model.fibers[i]);
   }
   if (!g.empty()) build_active(model);
 }
@@ -25,8 +27,9 @@ void ElementCaches::rebuild(const Model& model, const std::vector<int>& elements
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < n; ++k) {
     const size_t i = static_cast<size_t>(elements[static_cast<size_t>(k)]);
-    K[i] = element_stiffness(X[i], model.region_materials[static_cast<size_t>(model.mesh.regions()[i])],
-                             model.fibers[i]);
+    if (!K.empty())
+      K[i] = element_stiffness(X[i], model.region_materials[static_cast<size_t>(model.mesh.regions()[i])],
+                               model.fibers[i]);
     if (!g.empty()) g[i] = active_stress_vector(X[i], model.fibers[i]);
   }
 }

@@ -27,7 +27,9 @@ const char* to_string(RotationMethod m);
 Mat3 rotation_svd(const Mat3& F);
 
 /// Proper rotation of F by quaternion iteration, starting from and updating `q`.
-/// Stops when the update angle is below `tolerance_rad` or after `max_iterations`.
+/// Stops when the update angle is below `tolerance_rad`, after a Newton update w with
+/// w^2 < tolerance_rad / 10 (quadratic convergence: the next update would be below the
+/// tolerance), or after `max_iterations`.
 /// @return the number of iterations used.
 int rotation_polar(const Mat3& F, Eigen::Quaterniond& q, int max_iterations = 20,
                    double tolerance_rad = 1e-12);

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 
@@ -56,8 +57,17 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
       settings_((settings.validate(), settings)),
       sys_(model_.mesh, model_.fixed_dofs) {
   if (settings_.threads > 0) omp_set_num_threads(settings_.threads);
-  caches_.build(model_);
+  caches_.build(model_, /*with_stiffness=*/false);
   const int ne = model_.mesh.num_elements();
+  elements_.resize(static_cast<size_t>(ne));
+#pragma omp parallel for schedule(static)
+  for (int e = 0; e < ne; ++e) {
+    const size_t i = static_cast<size_t>(e);
+    elements_[i].Dm_inv = caches_.Dm_inv[i];
+    elements_[i].fiber = model_.fibers[i];
+    elements_[i].volume = model_.mesh.rest_volume(e);
+  }
+  for (const Material& m : model_.region_materials) region_law_.push_back(SpencerConstants::of(m));
   beta_e_.assign(static_cast<size_t>(ne), 0.0);
   if (!model_.region_damping.empty())
     for (int e = 0; e < ne; ++e)
@@ -87,7 +97,6 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   R_.assign(static_cast<size_t>(ne), Mat3::Identity());
   q_.assign(static_cast<size_t>(ne), Eigen::Quaterniond::Identity());
   if (model_.contraction.enabled()) {  // per-step tensions come from the schedule
-    caches_.build_active(model_);
     active_.assign(static_cast<size_t>(ne), 0.0);
     tension_table_ = model_.contraction.tabulate();
   }
@@ -202,7 +211,6 @@ void Simulator::restore(const SimulatorCheckpoint& c) {
   inverted_current_ = c.inverted_current;
   block_q_ = c.block_q;
   block_R_ = c.block_R;
-  if (!c.active_tension_pa.empty() && caches_.g.empty()) caches_.build_active(model_);
   active_ = c.active_tension_pa;
   f_ext_ = c.f_ext;
   energy_floor_j_ = c.energy_floor_j;
@@ -235,7 +243,7 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
 #pragma omp parallel for schedule(static)
   for (int e = 0; e < ne; ++e) {
     const size_t i = static_cast<size_t>(e);
-    const Mat3 F = deformation_gradient(gather(positions(), model_.mesh.tets()[i]), caches_.Dm_inv[i]);
+    const Mat3 F = element_gradient(e);
     R_[i] = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
     q_[i] = Eigen::Quaterniond(R_[i]);
   }
@@ -243,34 +251,45 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
   solver_->invalidate();
 }
 
+// Deformation gradient F = Ds Dm^-1 of element e at the current positions.
+Mat3 Simulator::element_gradient(int e) const {
+  const size_t i = static_cast<size_t>(e);
+  const Tet& t = model_.mesh.tets()[i];
+  Mat3 Ds;
+  const Vec3 x0 = x_.segment<3>(3 * t[0]);
+  for (int j = 0; j < 3; ++j) Ds.col(j) = x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0;
+  return Ds * elements_[i].Dm_inv;
+}
+
+// Rotation of element e from its F into R_[e] (and the warm-start q_[e]); returns 1 if
+// the element is inverted (det F <= 0), else 0.
+int Simulator::rotate_element(int e, const Mat3& F) {
+  const size_t i = static_cast<size_t>(e);
+  if (!settings_.corotation) {
+    R_[i] = Mat3::Identity();
+  } else if (settings_.rotation == RotationMethod::polar) {
+    rotation_polar(F, q_[i], 20, settings_.polar_tolerance_rad);
+    R_[i] = q_[i].toRotationMatrix();
+  } else {
+    R_[i] = rotation_svd(F);
+  }
+  return F.determinant() <= 0 ? 1 : 0;
+}
+
 // Rotations (and, if asked, the elastic energy) of the current positions; counts the
 // inverted elements into inverted_current_.
 double Simulator::update_rotations(bool with_energy) {
   const int ne = model_.mesh.num_elements();
-  const bool polar = settings_.rotation == RotationMethod::polar;
-  const bool corot = settings_.corotation;
+  const auto& regions = model_.mesh.regions();
   int inverted = 0;
   double energy = 0;
 #pragma omp parallel for schedule(static) reduction(+ : inverted, energy)
   for (int e = 0; e < ne; ++e) {
-    const size_t i = static_cast<size_t>(e);
-    const Tet& t = model_.mesh.tets()[i];
-    Mat3 Ds;
-    const Vec3 x0 = x_.segment<3>(3 * t[0]);
-    for (int j = 0; j < 3; ++j) Ds.col(j) = x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0;
-    const Mat3 F = Ds * caches_.Dm_inv[i];
-    if (F.determinant() <= 0) ++inverted;
-    if (!corot) {
-      R_[i] = Mat3::Identity();
-    } else if (polar) {
-      rotation_polar(F, q_[i], 20, settings_.polar_tolerance_rad);
-      R_[i] = q_[i].toRotationMatrix();
-    } else {
-      R_[i] = rotation_svd(F);
-    }
+    const Mat3 F = element_gradient(e);
+    inverted += rotate_element(e, F);
     if (with_energy) {
-      const Vec12 u = corotated_displacement(R_[i], gather(positions(), t), caches_.X[i]);
-      energy += 0.5 * u.dot(caches_.K[i] * u);
+      const size_t i = static_cast<size_t>(e);
+      energy += spencer_energy(region_law_[static_cast<size_t>(regions[i])], elements_[i], R_[i], F);
     }
   }
   inverted_current_ = inverted;
@@ -288,19 +307,9 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   std::fill(acc_.begin(), acc_.end(), ThreadAcc{});
   std::vector<ThreadAcc>& acc = acc_;
 
-  // Phase 1: rotations (embarrassingly parallel), unless the energy check of the last
-  // step already computed them for this state.
+  // Phase 1 and 2: rotations (unless the energy check of the last step computed them for
+  // this state) fused with the assembly of A and of the elastic and active forces.
   auto t0 = Clock::now();
-  if (!rotations_current_) {
-    update_rotations(false);
-  }
-  rotations_current_ = false;
-  const int inverted = inverted_current_;
-  r.inverted_elements = inverted;
-  r.time.rotations_s += seconds_since(t0);
-
-  // Phase 2: assembly of A and of the elastic and active forces.
-  t0 = Clock::now();
   if (!varying_loads_.empty()) {  // ramped and follower loads at the end of the (sub)step
     f_ext_ = f_ext_const_;
     for (const SurfaceLoad* s : varying_loads_) add_surface_load_at(model_.mesh.rest_positions(), positions(), *s, time_s_ + h, f_ext_);
@@ -327,42 +336,70 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   // The active forces' own vector is needed only for the energy check's work balance.
   const bool track_active_work = active && settings_.max_energy_gain < std::numeric_limits<double>::infinity();
   if (track_active_work) f_active_.setZero(sys_.num_dofs());
-  sys_.assemble(
-      [&](int e, Mat12& Ke, Vec12& fe) {
-        const size_t i = static_cast<size_t>(e);
-        const Mat3& R = R_[i];
-        const Mat12& K = caches_.K[i];
-        const Tet& t = model_.mesh.tets()[i];
-        const Vec12 u = corotated_displacement(R, gather(positions(), t), caches_.X[i]);
-        const Vec12 Ku = K * u;
-        acc[static_cast<size_t>(omp_get_thread_num())].energy += 0.5 * u.dot(Ku);
-        Vec12 floc = -Ku;
-        if (active && !rest_frame_active) {
-          floc -= active_[i] * caches_.g[i];
-          if (track_active_work)
-            for (int a = 0; a < 4; ++a)
-              f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * (R * caches_.g[i].segment<3>(3 * a));
+  // One pass per element (rotations fused in unless the last step's check computed them):
+  // F, R, the corotated strain's stress, forces, energy and the warped blocks in closed
+  // form (core/spencer_element.hpp: no stored 12 x 12 K^e is read).
+  const bool need_rotations = !rotations_current_;
+  rotations_current_ = false;
+  const auto& regions = model_.mesh.regions();
+  constexpr int W = ElementBatch::kWidth;
+  using Lanes = double __attribute__((vector_size(W * sizeof(double))));
+  sys_.assemble_batched(
+      [&](const int* elems, int n, ElementBatch& batch) {
+        ThreadAcc& my = acc[static_cast<size_t>(omp_get_thread_num())];
+        Lanes k[5], Rl[9], Dl[9], fl[3];
+        for (int l = 0; l < W; ++l) {
+          // Lanes past n repeat the last element (computed, never scattered).
+          const int e = elems[std::min(l, n - 1)];
+          const size_t i = static_cast<size_t>(e);
+          const SpencerElement& el = elements_[i];
+          const SpencerConstants& law = region_law_[static_cast<size_t>(regions[i])];
+          if (l < n) {
+            Vec12& fe = batch.force[l];
+            const Mat3 F = element_gradient(e);
+            if (need_rotations) my.inverted += rotate_element(e, F);
+            spencer_force(law, el, R_[i], F, fe, my.energy);
+            if (active) {
+              // g^e_a = V f (f . g_a) (PHYSICS.md section 6): the active force is
+              // -T_a V (R f)(f . g_a), or along the rest fiber f in the paper's nodal mode.
+              const Vec3 dir = rest_frame_active ? el.fiber : Vec3(R_[i] * el.fiber);
+              const Vec3 s123 = el.Dm_inv * el.fiber;  // f . g_a, a = 1..3
+              const double sa[4] = {-(s123(0) + s123(1) + s123(2)), s123(0), s123(1), s123(2)};
+              const double tv = active_[i] * el.volume;
+              const Tet& t = model_.mesh.tets()[i];
+              for (int a = 0; a < 4; ++a) {
+                const Vec3 fa = (-tv * sa[a]) * dir;
+                fe.segment<3>(3 * a) += fa;
+                if (track_active_work) f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) += fa;
+              }
+            }
+          }
+          const double cv = (h * beta_e_[i] + h * h) * el.volume;
+          k[0][l] = cv * law.lambda;
+          k[1][l] = cv * law.mu_t;
+          k[2][l] = cv * law.alpha;
+          k[3][l] = cv * law.gamma;
+          k[4][l] = cv * law.beta;
+          const Mat3& R = R_[i];
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) {
+              Rl[3 * r + c][l] = R(r, c);
+              Dl[3 * r + c][l] = el.Dm_inv(r, c);
+            }
+          for (int c = 0; c < 3; ++c) fl[c][l] = el.fiber(c);
         }
-        for (int a = 0; a < 4; ++a) fe.segment<3>(3 * a) = R * floc.segment<3>(3 * a);
-        if (active && rest_frame_active) {  // the paper's forces along the rest fibers
-          fe -= active_[i] * caches_.g[i];
-          if (track_active_work)
-            for (int a = 0; a < 4; ++a)
-              f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) -= active_[i] * caches_.g[i].segment<3>(3 * a);
-        }
-        // Ke = c diag(R) K diag(R)^T as two products of 12-row panels by 3x3 (vectorised
-        // down the columns): U = K diag(c R^T), then Ke = diag(R) U = U^T diag(R^T)
-        // (Ke symmetric), i.e. Ke's column panels are U^T's times R^T. Measured against
-        // the sixteen 3x3 block products it replaced: docs/performance.md.
-        const double c = h * beta_e_[i] + h * h;
-        const Mat3 cRt = c * R.transpose();
-        Mat12 U;
-        for (int b = 0; b < 4; ++b) U.middleCols<3>(3 * b).noalias() = K.middleCols<3>(3 * b) * cRt;
-        const Mat12 Ut = U.transpose();
-        const Mat3 Rt = R.transpose();
-        for (int b = 0; b < 4; ++b) Ke.middleCols<3>(3 * b).noalias() = Ut.middleCols<3>(3 * b) * Rt;
+        // The warped stiffness of all lanes at once: c R K^e R^T (core/spencer_element.hpp).
+        Lanes out[90];
+        spencer_upper_blocks(k, Rl, Dl, fl, out);
+        std::memcpy(batch.upper, out, sizeof out);
       },
       f_);
+  if (need_rotations) {
+    int inverted_sum = 0;
+    for (const ThreadAcc& a : acc) inverted_sum += a.inverted;
+    inverted_current_ = inverted_sum;
+  }
+  r.inverted_elements = inverted_current_;
   double* values = sys_.matrix().valuePtr();
   const auto& fi = sys_.free_index();
   const int nn = model_.mesh.num_nodes();
@@ -563,10 +600,9 @@ Energies Simulator::energies() const {
 #pragma omp parallel for schedule(static) reduction(+ : elastic)
   for (int e = 0; e < ne; ++e) {
     const size_t i = static_cast<size_t>(e);
-    const Vec12 xe = gather(positions(), model_.mesh.tets()[i]);
-    const Mat3 F = deformation_gradient(xe, caches_.Dm_inv[i]);
+    const Mat3 F = element_gradient(e);
     const Mat3 R = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
-    elastic += corotated_energy(R, caches_.K[i], xe, caches_.X[i]);
+    elastic += spencer_energy(region_law_[static_cast<size_t>(model_.mesh.regions()[i])], elements_[i], R, F);
   }
   en.elastic_j = elastic;
   for (int n = 0; n < model_.mesh.num_nodes(); ++n) {
@@ -580,7 +616,7 @@ int Simulator::count_inverted() const {
   int count = 0;
   for (int e = 0; e < model_.mesh.num_elements(); ++e) {
     const size_t i = static_cast<size_t>(e);
-    if (deformation_gradient(gather(positions(), model_.mesh.tets()[i]), caches_.Dm_inv[i]).determinant() <= 0) ++count;
+    if (element_gradient(static_cast<int>(i)).determinant() <= 0) ++count;
   }
   return count;
 }
@@ -589,10 +625,7 @@ void Simulator::set_region_material(int region, const Material& material) {
   if (region < 0 || region >= static_cast<int>(model_.region_materials.size()))
     throw std::invalid_argument("set_region_material: no region " + std::to_string(region));
   model_.region_materials[static_cast<size_t>(region)] = material;
-  std::vector<int> elems;
-  for (int e = 0; e < model_.mesh.num_elements(); ++e)
-    if (model_.mesh.regions()[static_cast<size_t>(e)] == region) elems.push_back(e);
-  caches_.rebuild(model_, elems);
+  region_law_[static_cast<size_t>(region)] = SpencerConstants::of(material);
   update_node_masses();
   solver_->invalidate();
   refresh_external_forces();
@@ -621,16 +654,17 @@ void Simulator::set_fibers(std::vector<Vec3> fibers) {
       throw std::invalid_argument("set_fibers: element " + std::to_string(e) + " has a zero or non-finite fiber");
     fibers[static_cast<size_t>(e)] /= n;
   }
-  std::vector<int> changed;
+  // The step reads the fiber from elements_ (stiffness and active stress alike): a changed
+  // fiber of an anisotropic region changes the matrix, so lagged factors are refreshed.
+  bool matrix_changed = false;
   for (int e = 0; e < ne; ++e) {
     const size_t i = static_cast<size_t>(e);
     if (fibers[i] == model_.fibers[i]) continue;
     model_.fibers[i] = fibers[i];
-    const bool iso = model_.region_materials[static_cast<size_t>(model_.mesh.regions()[i])].is_isotropic();
-    if (!iso || !caches_.g.empty()) changed.push_back(e);
+    elements_[i].fiber = fibers[i];
+    if (!model_.region_materials[static_cast<size_t>(model_.mesh.regions()[i])].is_isotropic()) matrix_changed = true;
   }
-  caches_.rebuild(model_, changed);
-  if (!changed.empty()) solver_->invalidate();
+  if (matrix_changed) solver_->invalidate();
 }
 
 void Simulator::set_time_step(double dt_s) {
@@ -688,7 +722,6 @@ void Simulator::set_active_tension(std::vector<double> tension_pa) {
   for (size_t e = 0; e < tension_pa.size(); ++e)
     if (!std::isfinite(tension_pa[e]))
       throw std::invalid_argument("set_active_tension: element " + std::to_string(e) + " is not finite");
-  if (caches_.g.empty()) caches_.build_active(model_);
   active_ = std::move(tension_pa);
 }
 
@@ -713,7 +746,6 @@ void Simulator::set_contraction(Contraction contraction) {
       }
     }
     TwitchTable table = contraction.tabulate();
-    if (caches_.g.empty()) caches_.build_active(model_);
     tension_table_ = std::move(table);
     contraction_origin_s_ = origin;
     active_.assign(static_cast<size_t>(model_.mesh.num_elements()), 0.0);

@@ -7,6 +7,7 @@
 #include "core/model.hpp"
 #include "core/rotation.hpp"
 #include "core/sparse_system.hpp"
+#include "core/spencer_element.hpp"
 
 #include <Eigen/Geometry>
 
@@ -114,6 +115,7 @@ class Simulator {
   // One cache line per thread for reductions inside the coloured loops.
   struct alignas(64) ThreadAcc {
     double energy = 0;
+    int inverted = 0;
   };
 
  public:
@@ -159,6 +161,8 @@ class Simulator {
 
   const Model& model() const { return model_; }
   const SimulatorSettings& settings() const { return settings_; }
+  /// Rest positions and rest-shape inverses per element (no K^e: the step uses the closed
+  /// form of core/spencer_element.hpp; element_stiffness gives K^e when wanted).
   const ElementCaches& caches() const { return caches_; }
   const SparseSystem& system() const { return sys_; }
   /// Rotation of each element at the start of the last step.
@@ -196,10 +200,14 @@ class Simulator {
   void apply_fixed();
   void update_block_rotations();
   double update_rotations(bool with_energy);
+  Mat3 element_gradient(int e) const;
+  int rotate_element(int e, const Mat3& F);
 
   Model model_;
   SimulatorSettings settings_;
-  ElementCaches caches_;
+  ElementCaches caches_;                  // X and Dm_inv (no K^e, no g^e)
+  std::vector<SpencerElement> elements_;  // what the step reads per element
+  std::vector<SpencerConstants> region_law_;  // per region
   SparseSystem sys_;
   std::unique_ptr<LinearSolver> solver_;
   std::vector<double> beta_e_;      // per element stiffness damping, s

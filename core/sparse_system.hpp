@@ -14,6 +14,19 @@ namespace fiberfem::core {
 /// Row-major sparse matrix type of the engine's linear systems.
 using SparseMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 
+/// Element matrices of up to kWidth elements side by side (structure of arrays), for
+/// kernels that compute several elements at once in SIMD lanes (SparseSystem::
+/// assemble_batched): the ten upper node blocks (a, b), b >= a, of each symmetric 12 x 12
+/// matrix, block k = the k-th pair in the order (0,0), (0,1), .., (0,3), (1,1), .., (3,3),
+/// entry (i, j) of a block at upper[9 k + 3 i + j][lane]; and each element's forces.
+struct ElementBatch {
+  static constexpr int kWidth = 4;
+  alignas(64) double upper[90][kWidth];
+  Eigen::Matrix<double, 12, 1> force[kWidth];
+  /// Index of block (a, b), b >= a, in the order above.
+  static constexpr int block_index(int a, int b) { return a * 4 - a * (a - 1) / 2 + (b - a); }
+};
+
 class SparseSystem {
  public:
   /// @param fixed_dofs per-DOF fixed flags (3N) or empty; fixed DOFs are left out.
@@ -58,6 +71,12 @@ class SparseSystem {
     assemble_impl<false>(kernel, f_full);
   }
 
+  /// As assemble, several elements at a time: `kernel(elems, n, batch)` fills the upper
+  /// blocks and forces of elements elems[0..n-1] (n <= ElementBatch::kWidth; consecutive
+  /// elements of one chunk) into lanes 0..n-1 of `batch`.
+  template <class BatchKernel>
+  void assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_full);
+
   /// Same chunked, coloured loop without a matrix: `kernel(e)` for each element; safe to
   /// write per-node data of the element's nodes.
   template <class Kernel>
@@ -97,6 +116,59 @@ void SparseSystem::for_each_element_coloured(Kernel&& kernel) const {
       const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
       const int end = std::min(begin + chunk_size_, ne);
       for (int k = begin; k < end; ++k) kernel(order_[static_cast<size_t>(k)]);
+    }
+  }
+}
+
+template <class BatchKernel>
+void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_full) {
+  double* values = A_.valuePtr();
+  const int ne = static_cast<int>(tets_.size());
+  constexpr int W = ElementBatch::kWidth;
+  for (const std::vector<int>& chunks : colour_chunks_) {
+    const int nc = static_cast<int>(chunks.size());
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int ci = 0; ci < nc; ++ci) {
+      const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
+      const int end = std::min(begin + chunk_size_, ne);
+      ElementBatch batch;
+      for (int k0 = begin; k0 < end; k0 += W) {
+        const int n = std::min(W, end - k0);
+        const int* elems = &order_[static_cast<size_t>(k0)];
+        kernel(elems, n, batch);
+        for (int l = 0; l < n; ++l) {
+          const int e = elems[l];
+          const int general = general_offset_[static_cast<size_t>(e)];
+          if (general < 0) {
+            const int* s = &block_scatter_[static_cast<size_t>(e) * kBlockIndices];
+            for (int a = 0; a < 4; ++a)
+              for (int b = a; b < 4; ++b) {
+                const double(*blk)[W] = &batch.upper[9 * ElementBatch::block_index(a, b)];
+                for (int i = 0; i < 3; ++i) {
+                  double* up = values + s[(4 * a + b) * 3 + i];
+                  for (int j = 0; j < 3; ++j) up[j] += blk[3 * i + j][l];
+                  if (b != a) {
+                    double* lo = values + s[(4 * b + a) * 3 + i];
+                    for (int j = 0; j < 3; ++j) lo[j] += blk[3 * j + i][l];
+                  }
+                }
+              }
+          } else {
+            const int* s = &general_scatter_[static_cast<size_t>(general)];
+            for (int c = 0; c < 12; ++c)
+              for (int r = 0; r < 12; ++r) {
+                const int idx = s[c * 12 + r];
+                if (idx < 0) continue;
+                const int a = std::min(r / 3, c / 3), b = std::max(r / 3, c / 3);
+                const int i = r / 3 <= c / 3 ? r % 3 : c % 3, j = r / 3 <= c / 3 ? c % 3 : r % 3;
+                values[idx] += batch.upper[9 * ElementBatch::block_index(a, b) + 3 * i + j][l];
+              }
+          }
+          const Tet& t = tets_[static_cast<size_t>(e)];
+          for (int a = 0; a < 4; ++a)
+            f_full.segment<3>(3 * t[static_cast<size_t>(a)]) += batch.force[l].segment<3>(3 * a);
+        }
+      }
     }
   }
 }

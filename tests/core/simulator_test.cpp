@@ -8,6 +8,7 @@
 
 #include "core/box_generator.hpp"
 #include "core/builtin_scenes.hpp"
+#include "core/element.hpp"
 #include "core/simulator.hpp"
 #include "core/static_solver.hpp"
 #include "test_support.hpp"
@@ -122,17 +123,22 @@ TEST(Simulator, BackwardEulerDampsEachModeByTheExactFactor) {
   st.dt_s = 1e-3;
   core::Simulator sim(model, st);
 
-  // Dense K and M over the free DOFs, assembled here from the element caches.
+  // Dense K and M over the free DOFs, assembled here from element_stiffness (the stored-K^e
+  // route, independent of the closed form the step uses).
   const auto& sys = sim.system();
   const int nf = sys.num_free();
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(nf, nf);
   for (int e = 0; e < model.mesh.num_elements(); ++e) {
     const core::Tet& t = model.mesh.tets()[static_cast<size_t>(e)];
+    const core::Mat12 Ke = core::element_stiffness(
+        core::gather(model.mesh.rest_positions(), t),
+        model.region_materials[static_cast<size_t>(model.mesh.regions()[static_cast<size_t>(e)])],
+        model.fibers[static_cast<size_t>(e)]);
     for (int a = 0; a < 12; ++a)
       for (int b = 0; b < 12; ++b) {
         const int i = sys.free_index()[static_cast<size_t>(3 * t[static_cast<size_t>(a / 3)] + a % 3)];
         const int j = sys.free_index()[static_cast<size_t>(3 * t[static_cast<size_t>(b / 3)] + b % 3)];
-        if (i >= 0 && j >= 0) K(i, j) += sim.caches().K[static_cast<size_t>(e)](a, b);
+        if (i >= 0 && j >= 0) K(i, j) += Ke(a, b);
       }
   }
   const Eigen::VectorXd m_full = model.lumped_node_masses();
