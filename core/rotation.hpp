@@ -34,4 +34,10 @@ Mat3 rotation_svd(const Mat3& F);
 int rotation_polar(const Mat3& F, Eigen::Quaterniond& q, int max_iterations = 20,
                    double tolerance_rad = 1e-12);
 
+/// rotation_polar for n <= 4 elements at once (SIMD lanes): F[l], the warm start *q[l]
+/// (updated) and the rotation *R[l] of each. Agrees with rotation_polar to the tolerance;
+/// lanes far from the answer or inverted are handed to rotation_polar itself.
+void rotation_polar_batch(const Mat3* F, Eigen::Quaterniond* const* q, Mat3* const* R, int n,
+                          double tolerance_rad);
+
 }  // namespace fiberfem::core

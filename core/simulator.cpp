@@ -261,19 +261,25 @@ Mat3 Simulator::element_gradient(int e) const {
   return Ds * elements_[i].Dm_inv;
 }
 
-// Rotation of element e from its F into R_[e] (and the warm-start q_[e]); returns 1 if
-// the element is inverted (det F <= 0), else 0.
-int Simulator::rotate_element(int e, const Mat3& F) {
-  const size_t i = static_cast<size_t>(e);
+// Rotations of elements elems[0..n-1] (n <= 4) from their F into R_ (and the warm-start
+// q_); returns how many are inverted (det F <= 0).
+int Simulator::rotate_elements(const int* elems, int n, const Mat3* F) {
+  int inverted = 0;
+  for (int l = 0; l < n; ++l) inverted += F[l].determinant() <= 0 ? 1 : 0;
   if (!settings_.corotation) {
-    R_[i] = Mat3::Identity();
+    for (int l = 0; l < n; ++l) R_[static_cast<size_t>(elems[l])] = Mat3::Identity();
   } else if (settings_.rotation == RotationMethod::polar) {
-    rotation_polar(F, q_[i], 20, settings_.polar_tolerance_rad);
-    R_[i] = q_[i].toRotationMatrix();
+    Eigen::Quaterniond* q[4];
+    Mat3* R[4];
+    for (int l = 0; l < n; ++l) {
+      q[l] = &q_[static_cast<size_t>(elems[l])];
+      R[l] = &R_[static_cast<size_t>(elems[l])];
+    }
+    rotation_polar_batch(F, q, R, n, settings_.polar_tolerance_rad);
   } else {
-    R_[i] = rotation_svd(F);
+    for (int l = 0; l < n; ++l) R_[static_cast<size_t>(elems[l])] = rotation_svd(F[l]);
   }
-  return F.determinant() <= 0 ? 1 : 0;
+  return inverted;
 }
 
 // Rotations (and, if asked, the elastic energy) of the current positions; counts the
@@ -283,14 +289,19 @@ double Simulator::update_rotations(bool with_energy) {
   const auto& regions = model_.mesh.regions();
   int inverted = 0;
   double energy = 0;
+  const int nb = (ne + 3) / 4;  // batches of four (rotation_polar_batch)
 #pragma omp parallel for schedule(static) reduction(+ : inverted, energy)
-  for (int e = 0; e < ne; ++e) {
-    const Mat3 F = element_gradient(e);
-    inverted += rotate_element(e, F);
-    if (with_energy) {
-      const size_t i = static_cast<size_t>(e);
-      energy += spencer_energy(region_law_[static_cast<size_t>(regions[i])], elements_[i], R_[i], F);
-    }
+  for (int b = 0; b < nb; ++b) {
+    const int elems[4] = {4 * b, 4 * b + 1, 4 * b + 2, 4 * b + 3};
+    const int n = std::min(4, ne - 4 * b);
+    Mat3 F[4];
+    for (int l = 0; l < n; ++l) F[l] = element_gradient(elems[l]);
+    inverted += rotate_elements(elems, n, F);
+    if (with_energy)
+      for (int l = 0; l < n; ++l) {
+        const size_t i = static_cast<size_t>(elems[l]);
+        energy += spencer_energy(region_law_[static_cast<size_t>(regions[i])], elements_[i], R_[i], F[l]);
+      }
   }
   inverted_current_ = inverted;
   return energy;
@@ -343,10 +354,14 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   rotations_current_ = false;
   const auto& regions = model_.mesh.regions();
   constexpr int W = ElementBatch::kWidth;
+  static_assert(W <= 4, "rotate_elements takes at most four elements");
   using Lanes = double __attribute__((vector_size(W * sizeof(double))));
   sys_.assemble_batched(
       [&](const int* elems, int n, ElementBatch& batch) {
         ThreadAcc& my = acc[static_cast<size_t>(omp_get_thread_num())];
+        Mat3 F[W];
+        for (int l = 0; l < n; ++l) F[l] = element_gradient(elems[l]);
+        if (need_rotations) my.inverted += rotate_elements(elems, n, F);
         Lanes k[5], Rl[9], Dl[9], fl[3];
         for (int l = 0; l < W; ++l) {
           // Lanes past n repeat the last element (computed, never scattered).
@@ -356,9 +371,7 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
           const SpencerConstants& law = region_law_[static_cast<size_t>(regions[i])];
           if (l < n) {
             Vec12& fe = batch.force[l];
-            const Mat3 F = element_gradient(e);
-            if (need_rotations) my.inverted += rotate_element(e, F);
-            spencer_force(law, el, R_[i], F, fe, my.energy);
+            spencer_force(law, el, R_[i], F[l], fe, my.energy);
             if (active) {
               // g^e_a = V f (f . g_a) (PHYSICS.md section 6): the active force is
               // -T_a V (R f)(f . g_a), or along the rest fiber f in the paper's nodal mode.

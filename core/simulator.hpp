@@ -201,7 +201,7 @@ class Simulator {
   void update_block_rotations();
   double update_rotations(bool with_energy);
   Mat3 element_gradient(int e) const;
-  int rotate_element(int e, const Mat3& F);
+  int rotate_elements(const int* elems, int n, const Mat3* F);
 
   Model model_;
   SimulatorSettings settings_;

@@ -256,3 +256,56 @@ TEST(RotationSvd, NonFiniteInputPropagates) {
     EXPECT_FALSE(R.allFinite()) << "entry " << k << ": got\n" << R;
   }
 }
+
+// rotation_polar_batch (four elements in SIMD lanes) against the reference polar rotation:
+// warm starts near the answer (the steady step), far from it and reversed (handed to the
+// scalar iteration), inverted and random F, batches of one to four; every lane updates
+// its own warm start and rotation only.
+TEST(RotationPolar, BatchOfFourAgreesWithTheReference) {
+  std::mt19937 rng(23);
+  std::normal_distribution<double> n(0, 1);
+  const double tol = 1e-9;
+  int cases = 0;
+  for (int trial = 0; trial < 400; ++trial) {
+    const int count = 1 + trial % 4;
+    Mat3 F[4];
+    Eigen::Quaterniond q[4], q_scalar[4];
+    Mat3 R[4];
+    Eigen::Quaterniond* qp[4];
+    Mat3* Rp[4];
+    for (int l = 0; l < 4; ++l) {
+      const Mat3 R0 = random_rotation(rng);
+      const int kind = (trial / 4 + l) % 4;
+      const Vec3 s = kind == 2 ? Vec3(1.2, 0.9, -0.3) : Vec3(1 + 0.2 * n(rng), 1 + 0.2 * n(rng), 1 + 0.2 * n(rng));
+      F[l] = kind == 3 ? random_matrix(rng) : rotated_stretch(R0, random_rotation(rng), s);
+      // Warm start: near the answer (a small turn away), or a random rotation.
+      const Mat3 answer = core::rotation_svd(F[l]);
+      const Vec3 turn = (kind == 0 ? 8e-3 : kind == 1 ? 3.0 : kind == 2 ? 0.05 : 1e-3) * Vec3(n(rng), n(rng), n(rng)).normalized();
+      q[l] = Eigen::Quaterniond(Eigen::AngleAxisd(turn.norm(), turn.normalized()).toRotationMatrix() * answer);
+      q_scalar[l] = q[l];
+      R[l] = Mat3::Constant(-7);
+      qp[l] = &q[l];
+      Rp[l] = &R[l];
+    }
+    core::rotation_polar_batch(F, qp, Rp, count, tol);
+    for (int l = 0; l < 4; ++l) {
+      if (l >= count) {  // lanes past the count are not touched
+        EXPECT_EQ(R[l](0, 0), -7.0);
+        EXPECT_EQ(q[l].coeffs(), q_scalar[l].coeffs());
+        continue;
+      }
+      const Mat3 expected = core::rotation_svd(F[l]);
+      EXPECT_LT(orthonormality_error(R[l]), 1e-12);
+      EXPECT_NEAR(R[l].determinant(), 1.0, 1e-12);
+      EXPECT_LT((R[l] - q[l].toRotationMatrix()).norm(), 1e-12) << "R and the warm start disagree";
+      // The maximiser of trace(R^T F) is unique unless two singular values sum to zero.
+      EXPECT_NEAR((R[l].transpose() * F[l]).trace(), max_trace(F[l]), 1e-9 * F[l].norm());
+      if (F[l].determinant() > 1e-3) {
+        EXPECT_LT((R[l] - reference_polar(F[l])).norm(), 1e-8) << "trial " << trial << " lane " << l;
+        EXPECT_LT((R[l] - expected).norm(), 1e-8);
+        ++cases;
+      }
+    }
+  }
+  EXPECT_GT(cases, 300);
+}
