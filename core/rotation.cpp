@@ -95,10 +95,11 @@ int rotation_polar(const Mat3& F, Eigen::Quaterniond& q, int max_iterations, dou
 namespace fiberfem::core {
 
 // rotation_polar's Newton iteration for up to four elements side by side, one per SIMD
-// lane (GCC/Clang vector extensions): two updates q += (0, w/2) q, normalised, for every
-// lane, then each lane is judged as rotation_polar would: a lane whose updates were all
-// Newton steps below 1e-2 rad and whose second update w satisfies w^2 < tolerance/100
-// is done; a lane that took a safeguarded step (far from the answer, inverted) restarts
+// lane (GCC/Clang vector extensions): three updates q += (0, w/2) q, normalised, for
+// every lane (the first-order step turns by 2 atan(w/2), within 1e-4 rad of w for the
+// steps allowed here; Newton corrects it at the next update), then each lane is judged as
+// rotation_polar would: a lane whose updates were all Newton steps of at most 0.1 rad and
+// whose last update w satisfies w^2 < tolerance/100 is done; a lane that took a safeguarded step (far from the answer, inverted) restarts
 // from its warm start in rotation_polar, and one that is merely not converged continues
 // there. Same fixed point, same tolerance; about a third of the scalar instructions.
 void rotation_polar_batch(const Mat3* F, Eigen::Quaterniond* const* q, Mat3* const* R, int n,
@@ -159,7 +160,7 @@ void rotation_polar_batch(const Mat3* F, Eigen::Quaterniond* const* q, Mat3* con
     const L w2 = ox * ox + oy * oy + oz * oz;
     for (int l = 0; l < W; ++l) {
       const bool newton = h00[l] > eps[l] && c22[l] > eps[l] * eps[l] && det[l] > eps[l] * eps[l] * eps[l];
-      newton_all[l] = newton_all[l] && newton && w2[l] <= 1e-4;  // also false for NaN
+      newton_all[l] = newton_all[l] && newton && w2[l] <= 1e-2;  // also false for NaN
       last_w[l] = std::sqrt(w2[l]);
     }
     const L nw = qw - 0.5 * (ox * qx + oy * qy + oz * qz);

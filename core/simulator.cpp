@@ -64,6 +64,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   for (int e = 0; e < ne; ++e) {
     const size_t i = static_cast<size_t>(e);
     elements_[i].Dm_inv = caches_.Dm_inv[i];
+    for (int j = 0; j < 3; ++j) elements_[i].Dm.col(j) = caches_.X[i].segment<3>(3 * (j + 1)) - caches_.X[i].segment<3>(0);
     elements_[i].fiber = model_.fibers[i];
     elements_[i].volume = model_.mesh.rest_volume(e);
   }
@@ -251,14 +252,19 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
   solver_->invalidate();
 }
 
-// Deformation gradient F = Ds Dm^-1 of element e at the current positions.
+// Deformation gradient of element e at the current positions, as F = I + (Ds - Dm) Dm^-1:
+// the round-off is relative to the displacement (F is exactly I at rest, where Ds Dm^-1
+// would leave 1e-16 of strain and a non-zero energy).
 Mat3 Simulator::element_gradient(int e) const {
   const size_t i = static_cast<size_t>(e);
   const Tet& t = model_.mesh.tets()[i];
-  Mat3 Ds;
+  const SpencerElement& el = elements_[i];
+  Mat3 D;
   const Vec3 x0 = x_.segment<3>(3 * t[0]);
-  for (int j = 0; j < 3; ++j) Ds.col(j) = x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0;
-  return Ds * elements_[i].Dm_inv;
+  for (int j = 0; j < 3; ++j) D.col(j) = (x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0) - el.Dm.col(j);
+  Mat3 F = D * el.Dm_inv;
+  F.diagonal().array() += 1.0;
+  return F;
 }
 
 // Rotations of elements elems[0..n-1] (n <= 4) from their F into R_ (and the warm-start

@@ -59,6 +59,7 @@ Case random_case(std::mt19937& rng, double stretch) {
   const Vec3 t(u(rng), u(rng), u(rng));
   for (int a = 0; a < 4; ++a) c.x.segment<3>(3 * a) = R * S * c.X.segment<3>(3 * a) + t;
   c.el.Dm_inv = core::rest_shape_inverse(c.X);
+  for (int j = 0; j < 3; ++j) c.el.Dm.col(j) = c.X.segment<3>(3 * (j + 1)) - c.X.segment<3>(0);
   c.el.fiber = c.fiber;
   Mat3 Dm;
   for (int j = 0; j < 3; ++j) Dm.col(j) = c.X.segment<3>(3 * (j + 1)) - c.X.segment<3>(0);
