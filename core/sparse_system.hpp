@@ -85,6 +85,10 @@ class SparseSystem {
  private:
   template <bool Symmetric, class Kernel>
   void assemble_impl(Kernel&& kernel, Eigen::VectorXd& f_full);
+  /// The coloured loop over chunks: `kernel(begin, end)` for positions [begin, end) of
+  /// order_; chunks of one colour run concurrently.
+  template <class ChunkKernel>
+  void for_each_chunk_coloured(ChunkKernel&& kernel) const;
   int num_dofs_ = 0;
   int num_free_ = 0;
   std::vector<int> free_index_;
@@ -106,31 +110,31 @@ class SparseSystem {
   std::vector<std::vector<int>> colour_chunks_;  // chunk ids per colour
 };
 
-template <class Kernel>
-void SparseSystem::for_each_element_coloured(Kernel&& kernel) const {
+template <class ChunkKernel>
+void SparseSystem::for_each_chunk_coloured(ChunkKernel&& kernel) const {
   const int ne = static_cast<int>(tets_.size());
   for (const std::vector<int>& chunks : colour_chunks_) {
     const int nc = static_cast<int>(chunks.size());
 #pragma omp parallel for schedule(dynamic, 1)
     for (int ci = 0; ci < nc; ++ci) {
       const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
-      const int end = std::min(begin + chunk_size_, ne);
-      for (int k = begin; k < end; ++k) kernel(order_[static_cast<size_t>(k)]);
+      kernel(begin, std::min(begin + chunk_size_, ne));
     }
   }
+}
+
+template <class Kernel>
+void SparseSystem::for_each_element_coloured(Kernel&& kernel) const {
+  for_each_chunk_coloured([&](int begin, int end) {
+    for (int k = begin; k < end; ++k) kernel(order_[static_cast<size_t>(k)]);
+  });
 }
 
 template <class BatchKernel>
 void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_full) {
   double* values = A_.valuePtr();
-  const int ne = static_cast<int>(tets_.size());
   constexpr int W = ElementBatch::kWidth;
-  for (const std::vector<int>& chunks : colour_chunks_) {
-    const int nc = static_cast<int>(chunks.size());
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int ci = 0; ci < nc; ++ci) {
-      const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
-      const int end = std::min(begin + chunk_size_, ne);
+  for_each_chunk_coloured([&](int begin, int end) {
       ElementBatch batch;
       for (int k0 = begin; k0 < end; k0 += W) {
         const int n = std::min(W, end - k0);
@@ -169,8 +173,7 @@ void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_ful
             f_full.segment<3>(3 * t[static_cast<size_t>(a)]) += batch.force[l].segment<3>(3 * a);
         }
       }
-    }
-  }
+  });
 }
 
 template <bool Symmetric, class Kernel>

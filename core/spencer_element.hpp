@@ -86,61 +86,8 @@ inline Mat3 corotated_strain(const Mat3& R, const Mat3& F) {
   return eps;
 }
 
-/// R K^e R^T times `c`, all sixteen node blocks, into Ke (column-major 12 x 12,
-/// symmetric). `k` are the material's constants times c V.
-inline void spencer_warped_stiffness(const SpencerConstants& k, const Mat3& R, const Mat3& Dm_inv, const Vec3& f,
-                                     Mat12& Ke) {
-  // Column (b, j) of the block formula (file comment), as 12-vectors over the rows (a, i):
-  //   A_a,i p_b,j + alpha p_a,i w_b,j            (broadcasts of p_b,j and w_b,j)
-  // + p_a,j B_b,i + w_a,j gamma p_b,i            (node-a vector times component-i vector)
-  // + e_ab hh_ij + d_ab delta_ij,
-  // e_ab = gamma G_ab + beta s_a s_b, d_ab = mu_T G_ab + gamma s_a s_b: six operations on
-  // 12-vectors per column, which vectorise (a scalar 3 x 3 loop measured 3.5x the
-  // instructions).
-  using V12 = Eigen::Matrix<double, 12, 1>;
-  Eigen::Matrix<double, 3, 4> g = shape_gradients(Dm_inv);
-  const Eigen::Matrix<double, 3, 4> p = R * g;
-  const Vec3 h = R * f;
-  const Eigen::Matrix<double, 1, 4> s = f.transpose() * g;
-  const Eigen::Matrix<double, 3, 4> w = h * s;
-  const Eigen::Matrix4d G = g.transpose() * g;
-  const Eigen::Matrix4d ss = s.transpose() * s;
-  const Eigen::Matrix4d E = k.gamma * G + k.beta * ss;
-  const Eigen::Matrix4d D = k.mu_t * G + k.gamma * ss;
-  const Eigen::Matrix<double, 3, 4> A = k.lambda * p + k.alpha * w;
-  const Eigen::Matrix<double, 3, 4> B = k.mu_t * p + k.gamma * w;
-  const Eigen::Map<const V12> vA(A.data()), vP(p.data());
-  const V12 vAP = k.alpha * vP;
-  // Rows (a, i) of: p_a,j and w_a,j (repeated over i); B_b,i, gamma p_b,i (repeated over a);
-  // hh_ij and delta_ij (repeated over a); e_ab, d_ab (repeated over i).
-  V12 Pj[3], Wj[3], Hj[3], Ij[3], Bb[4], GPb[4], Eb[4], Db[4];
-  for (int j = 0; j < 3; ++j)
-    for (int a = 0; a < 4; ++a)
-      for (int i = 0; i < 3; ++i) {
-        Pj[j](3 * a + i) = p(j, a);
-        Wj[j](3 * a + i) = w(j, a);
-        Hj[j](3 * a + i) = h(i) * h(j);
-        Ij[j](3 * a + i) = i == j ? 1.0 : 0.0;
-      }
-  for (int b = 0; b < 4; ++b)
-    for (int a = 0; a < 4; ++a)
-      for (int i = 0; i < 3; ++i) {
-        Bb[b](3 * a + i) = B(i, b);
-        GPb[b](3 * a + i) = k.gamma * p(i, b);
-        Eb[b](3 * a + i) = E(a, b);
-        Db[b](3 * a + i) = D(a, b);
-      }
-  for (int b = 0; b < 4; ++b)
-    for (int j = 0; j < 3; ++j) {
-      auto col = Ke.col(3 * b + j);
-      col = vA * p(j, b) + vAP * w(j, b);
-      col += Pj[j].cwiseProduct(Bb[b]) + Wj[j].cwiseProduct(GPb[b]);
-      col += Eb[b].cwiseProduct(Hj[j]) + Db[b].cwiseProduct(Ij[j]);
-    }
-}
-
-/// The ten upper node blocks of R K^e R^T (scaled), as spencer_warped_stiffness, for
-/// several elements at once: T is double or a SIMD vector of doubles (one element per
+/// The ten upper node blocks of c R K^e R^T, for one element (T = double) or several at
+/// once: T is double or a SIMD vector of doubles (one element per
 /// lane; GCC/Clang vector extensions), so every operation below is one vector
 /// instruction for all lanes. Inputs per lane: k = {lambda, mu_T, alpha, gamma, beta}
 /// times c V; R and Dm_inv row-major (entry (r, c) at 3 r + c); f the unit fiber. Output:

@@ -7,6 +7,7 @@
 #include "core/corotation.hpp"
 #include "core/element.hpp"
 #include "core/rotation.hpp"
+#include "core/sparse_system.hpp"
 #include "core/spencer_element.hpp"
 #include "test_support.hpp"
 
@@ -99,10 +100,24 @@ TEST(SpencerElement, WarpedBlocksEqualRotatedStoredStiffness) {
       const Mat3 R = random_rotation(rng);
       const double scale = 0.37;
       const Mat12 expected = scale * core::warped_stiffness(R, K);
+      // spencer_upper_blocks, as the step calls it (here with T = double, one element).
+      const core::SpencerConstants ks = c.scaled(scale * k.el.volume);
+      const double kk[5] = {ks.lambda, ks.mu_t, ks.alpha, ks.gamma, ks.beta};
+      double Rr[9], Dr[9], out[90];
+      for (int r = 0; r < 3; ++r)
+        for (int q = 0; q < 3; ++q) {
+          Rr[3 * r + q] = R(r, q);
+          Dr[3 * r + q] = k.el.Dm_inv(r, q);
+        }
+      const double fv[3] = {k.fiber(0), k.fiber(1), k.fiber(2)};
+      core::spencer_upper_blocks(kk, Rr, Dr, fv, out);
       Mat12 got = Mat12::Zero();
-      core::spencer_warped_stiffness(c.scaled(scale * k.el.volume), R, k.el.Dm_inv, k.fiber, got);
       for (int a = 0; a < 4; ++a)
-        for (int b = 0; b < 4; ++b)
+        for (int b = a; b < 4; ++b)
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) got(3 * a + i, 3 * b + j) = out[9 * core::ElementBatch::block_index(a, b) + 3 * i + j];
+      for (int a = 0; a < 4; ++a)
+        for (int b = a; b < 4; ++b)
           EXPECT_LT((got.block<3, 3>(3 * a, 3 * b) - expected.block<3, 3>(3 * a, 3 * b)).norm(),
                     1e-11 * expected.norm())
               << "block " << a << b << " trial " << trial;
