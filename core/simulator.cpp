@@ -143,6 +143,7 @@ void Simulator::reset() {
   std::fill(R_.begin(), R_.end(), Mat3::Identity());
   std::fill(q_.begin(), q_.end(), Eigen::Quaterniond::Identity());
   rotations_current_ = false;
+  assembled_ahead_ = false;
   block_q_.assign(block_node_.size(), Eigen::Quaterniond::Identity());
   block_R_.assign(block_node_.size(), Mat3::Identity());
   solver_->invalidate();
@@ -209,6 +210,7 @@ void Simulator::restore(const SimulatorCheckpoint& c) {
   q_ = c.q;
   R_ = c.R;
   rotations_current_ = c.rotations_current;
+  assembled_ahead_ = false;  // not in the checkpoint: the next step makes its element pass
   inverted_current_ = c.inverted_current;
   block_q_ = c.block_q;
   block_R_ = c.block_R;
@@ -249,20 +251,26 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
     q_[i] = Eigen::Quaterniond(R_[i]);
   }
   rotations_current_ = false;
+  assembled_ahead_ = false;
   solver_->invalidate();
+}
+
+// Ds - Dm of element e at the current positions (its edges' displacements), m.
+Mat3 Simulator::element_edges(int e) const {
+  const size_t i = static_cast<size_t>(e);
+  const Tet& t = model_.mesh.tets()[i];
+  const Mat3& Dm = elements_[i].Dm;
+  Mat3 D;
+  const Vec3 x0 = x_.segment<3>(3 * t[0]);
+  for (int j = 0; j < 3; ++j) D.col(j) = (x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0) - Dm.col(j);
+  return D;
 }
 
 // Deformation gradient of element e at the current positions, as F = I + (Ds - Dm) Dm^-1:
 // the round-off is relative to the displacement (F is exactly I at rest, where Ds Dm^-1
 // would leave 1e-16 of strain and a non-zero energy).
 Mat3 Simulator::element_gradient(int e) const {
-  const size_t i = static_cast<size_t>(e);
-  const Tet& t = model_.mesh.tets()[i];
-  const SpencerElement& el = elements_[i];
-  Mat3 D;
-  const Vec3 x0 = x_.segment<3>(3 * t[0]);
-  for (int j = 0; j < 3; ++j) D.col(j) = (x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0) - el.Dm.col(j);
-  Mat3 F = D * el.Dm_inv;
+  Mat3 F = element_edges(e) * elements_[static_cast<size_t>(e)].Dm_inv;
   F.diagonal().array() += 1.0;
   return F;
 }
@@ -288,54 +296,22 @@ int Simulator::rotate_elements(const int* elems, int n, const Mat3* F) {
   return inverted;
 }
 
-// Rotations (and, if asked, the elastic energy) of the current positions; counts the
-// inverted elements into inverted_current_.
-double Simulator::update_rotations(bool with_energy) {
-  const int ne = model_.mesh.num_elements();
-  const auto& regions = model_.mesh.regions();
-  int inverted = 0;
-  double energy = 0;
-  const int nb = (ne + 3) / 4;  // batches of four (rotation_polar_batch)
-#pragma omp parallel for schedule(static) reduction(+ : inverted, energy)
-  for (int b = 0; b < nb; ++b) {
-    const int elems[4] = {4 * b, 4 * b + 1, 4 * b + 2, 4 * b + 3};
-    const int n = std::min(4, ne - 4 * b);
-    Mat3 F[4];
-    for (int l = 0; l < n; ++l) F[l] = element_gradient(elems[l]);
-    inverted += rotate_elements(elems, n, F);
-    if (with_energy)
-      for (int l = 0; l < n; ++l) {
-        const size_t i = static_cast<size_t>(elems[l]);
-        energy += spencer_energy(region_law_[static_cast<size_t>(regions[i])], elements_[i], R_[i], F[l]);
-      }
-  }
-  inverted_current_ = inverted;
-  return energy;
-}
-
-// Linearised backward Euler in velocity form (PHYSICS.md section 5), per element e:
-//   A = sum_e [(1 + h alpha_e) M_e + (h beta_e + h^2) R K^e R^T]
-//   b = M v_n + h (f_ext + f_el(x_n) + f_active),  f_el = -R K^e (R^T x - X),
-//   f_active = -T_a R g^e (section 6); then x_{n+1} = x_n + h v_{n+1}.
-bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& why) {
+// The element pass of a (sub)step of size h ending at time t_end_s: rotations of the
+// current positions (unless rotations_current_), the active tension at t_end_s, and the
+// elastic and active forces, energy and warped blocks of every element into sys_ (without
+// the mass terms), f_ and f_active_. Returns the elastic energy of the current state;
+// counts inverted elements into inverted_current_ when it computes the rotations.
+double Simulator::assemble_elements(double h, double t_end_s) {
   const int ne = model_.mesh.num_elements();
   const int nthreads = omp_get_max_threads();
   acc_.resize(static_cast<size_t>(nthreads));  // no allocation after the first step
   std::fill(acc_.begin(), acc_.end(), ThreadAcc{});
   std::vector<ThreadAcc>& acc = acc_;
-
-  // Phase 1 and 2: rotations (unless the energy check of the last step computed them for
-  // this state) fused with the assembly of A and of the elastic and active forces.
-  auto t0 = Clock::now();
-  if (!varying_loads_.empty()) {  // ramped and follower loads at the end of the (sub)step
-    f_ext_ = f_ext_const_;
-    for (const SurfaceLoad* s : varying_loads_) add_surface_load_at(model_.mesh.rest_positions(), positions(), *s, time_s_ + h, f_ext_);
-  }
   const Contraction& con = model_.contraction;
   if (con.enabled()) {
     // The tension at the end of the (sub)step, as backward Euler evaluates forces there,
     // from the tabulated beat (Contraction::tabulate).
-    const double t_end = time_s_ + h - contraction_origin_s_;
+    const double t_end = t_end_s - contraction_origin_s_;
     const auto& regions = model_.mesh.regions();
     const bool delays = !con.element_delay_s.empty();
     const double shared = tension_table_.value(t_end);
@@ -357,7 +333,6 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   // F, R, the corotated strain's stress, forces, energy and the warped blocks in closed
   // form (core/spencer_element.hpp: no stored 12 x 12 K^e is read).
   const bool need_rotations = !rotations_current_;
-  rotations_current_ = false;
   const auto& regions = model_.mesh.regions();
   constexpr int W = ElementBatch::kWidth;
   static_assert(W <= 4, "rotate_elements takes at most four elements");
@@ -365,51 +340,70 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   sys_.assemble_batched(
       [&](const int* elems, int n, ElementBatch& batch) {
         ThreadAcc& my = acc[static_cast<size_t>(omp_get_thread_num())];
-        Mat3 F[W];
-        for (int l = 0; l < n; ++l) F[l] = element_gradient(elems[l]);
-        if (need_rotations) my.inverted += rotate_elements(elems, n, F);
-        Lanes k[5], Rl[9], Dl[9], fl[3];
+        // Lanes past n repeat the last element (computed, never scattered).
+        int lane_elem[W];
+        for (int l = 0; l < W; ++l) lane_elem[l] = elems[std::min(l, n - 1)];
+        Mat3 D[W], F[W];
         for (int l = 0; l < W; ++l) {
-          // Lanes past n repeat the last element (computed, never scattered).
-          const int e = elems[std::min(l, n - 1)];
-          const size_t i = static_cast<size_t>(e);
+          const int e = lane_elem[l];
+          D[l] = element_edges(e);
+          if (l < n) {
+            F[l].noalias() = D[l] * elements_[static_cast<size_t>(e)].Dm_inv;
+            F[l].diagonal().array() += 1.0;
+          }
+        }
+        if (need_rotations) my.inverted += rotate_elements(elems, n, F);
+        Lanes kv[5], cl, Rl[9], Dil[9], Dl[9], fl[3];
+        for (int l = 0; l < W; ++l) {
+          const size_t i = static_cast<size_t>(lane_elem[l]);
           const SpencerElement& el = elements_[i];
           const SpencerConstants& law = region_law_[static_cast<size_t>(regions[i])];
-          if (l < n) {
-            Vec12& fe = batch.force[l];
-            spencer_force(law, el, R_[i], F[l], fe, my.energy);
-            if (active) {
-              // g^e_a = V f (f . g_a) (PHYSICS.md section 6): the active force is
-              // -T_a V (R f)(f . g_a), or along the rest fiber f in the paper's nodal mode.
-              const Vec3 dir = rest_frame_active ? el.fiber : Vec3(R_[i] * el.fiber);
-              const Vec3 s123 = el.Dm_inv * el.fiber;  // f . g_a, a = 1..3
-              const double sa[4] = {-(s123(0) + s123(1) + s123(2)), s123(0), s123(1), s123(2)};
-              const double tv = active_[i] * el.volume;
-              const Tet& t = model_.mesh.tets()[i];
-              for (int a = 0; a < 4; ++a) {
-                const Vec3 fa = (-tv * sa[a]) * dir;
-                fe.segment<3>(3 * a) += fa;
-                if (track_active_work) f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) += fa;
-              }
-            }
-          }
-          const double cv = (h * beta_e_[i] + h * h) * el.volume;
-          k[0][l] = cv * law.lambda;
-          k[1][l] = cv * law.mu_t;
-          k[2][l] = cv * law.alpha;
-          k[3][l] = cv * law.gamma;
-          k[4][l] = cv * law.beta;
+          kv[0][l] = el.volume * law.lambda;
+          kv[1][l] = el.volume * law.mu_t;
+          kv[2][l] = el.volume * law.alpha;
+          kv[3][l] = el.volume * law.gamma;
+          kv[4][l] = el.volume * law.beta;
+          cl[l] = h * beta_e_[i] + h * h;
           const Mat3& R = R_[i];
           for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c) {
               Rl[3 * r + c][l] = R(r, c);
-              Dl[3 * r + c][l] = el.Dm_inv(r, c);
+              Dil[3 * r + c][l] = el.Dm_inv(r, c);
+              Dl[3 * r + c][l] = D[l](r, c);
             }
           for (int c = 0; c < 3; ++c) fl[c][l] = el.fiber(c);
         }
+        // Forces -V R sigma g_a and energies of all lanes at once.
+        Lanes fel[12], energy;
+        spencer_force_lanes(kv, Rl, Dil, Dl, fl, fel, energy);
+        for (int l = 0; l < n; ++l) {
+          Vec12& fe = batch.force[l];
+          for (int c = 0; c < 12; ++c) fe(c) = fel[c][l];
+          my.energy += energy[l];
+        }
+        if (active)
+          for (int l = 0; l < n; ++l) {
+            // g^e_a = V f (f . g_a) (PHYSICS.md section 6): the active force is
+            // -T_a V (R f)(f . g_a), or along the rest fiber f in the paper's nodal mode.
+            const size_t i = static_cast<size_t>(elems[l]);
+            const SpencerElement& el = elements_[i];
+            Vec12& fe = batch.force[l];
+            const Vec3 dir = rest_frame_active ? el.fiber : Vec3(R_[i] * el.fiber);
+            const Vec3 s123 = el.Dm_inv * el.fiber;  // f . g_a, a = 1..3
+            const double sa[4] = {-(s123(0) + s123(1) + s123(2)), s123(0), s123(1), s123(2)};
+            const double tv = active_[i] * el.volume;
+            const Tet& t = model_.mesh.tets()[i];
+            for (int a = 0; a < 4; ++a) {
+              const Vec3 fa = (-tv * sa[a]) * dir;
+              fe.segment<3>(3 * a) += fa;
+              if (track_active_work) f_active_.segment<3>(3 * t[static_cast<size_t>(a)]) += fa;
+            }
+          }
         // The warped stiffness of all lanes at once: c R K^e R^T (core/spencer_element.hpp).
+        Lanes k[5];
+        for (int j = 0; j < 5; ++j) k[j] = cl * kv[j];
         Lanes out[90];
-        spencer_upper_blocks(k, Rl, Dl, fl, out);
+        spencer_upper_blocks(k, Rl, Dil, fl, out);
         std::memcpy(batch.upper, out, sizeof out);
       },
       f_);
@@ -418,6 +412,35 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
     for (const ThreadAcc& a : acc) inverted_sum += a.inverted;
     inverted_current_ = inverted_sum;
   }
+  rotations_current_ = true;
+  double elastic = 0;
+  for (const ThreadAcc& t : acc) elastic += t.energy;
+  return elastic;
+}
+
+// Linearised backward Euler in velocity form (PHYSICS.md section 5), per element e:
+//   A = sum_e [(1 + h alpha_e) M_e + (h beta_e + h^2) R K^e R^T]
+//   b = M v_n + h (f_ext + f_el(x_n) + f_active),  f_el = -R K^e (R^T x - X),
+//   f_active = -T_a R g^e (section 6); then x_{n+1} = x_n + h v_{n+1}.
+bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& why) {
+  const int ne = model_.mesh.num_elements();
+
+  // Phase 1 and 2: rotations fused with the assembly of A and of the elastic and active
+  // forces, unless the checks of the last (sub)step already made this pass for this state
+  // and step size (assembled_ahead_).
+  auto t0 = Clock::now();
+  if (!varying_loads_.empty()) {  // ramped and follower loads at the end of the (sub)step
+    f_ext_ = f_ext_const_;
+    for (const SurfaceLoad* s : varying_loads_) add_surface_load_at(model_.mesh.rest_positions(), positions(), *s, time_s_ + h, f_ext_);
+  }
+  double elastic;
+  if (assembled_ahead_ && ahead_h_ == h) {
+    elastic = ahead_elastic_j_;
+  } else {
+    elastic = assemble_elements(h, time_s_ + h);
+  }
+  assembled_ahead_ = false;
+  const bool active = !active_.empty();
   r.inverted_elements = inverted_current_;
   double* values = sys_.matrix().valuePtr();
   const auto& fi = sys_.free_index();
@@ -432,8 +455,6 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
       rhs_(k) = mass_(n) * v_(3 * n + c) + h * (f_ext_(3 * n + c) + f_(3 * n + c));
     }
   }
-  double elastic = 0;
-  for (auto& a : acc) elastic += a.energy;
   r.elastic_energy_j = elastic;
   double kinetic = 0;
   for (int n = 0; n < nn; ++n) kinetic += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
@@ -475,34 +496,43 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   }
   sys_.scatter_free(vfree_, v_);
   x_ += h * v_;
+  rotations_current_ = false;
   if (!x_.allFinite()) {
     why = "positions became NaN/Inf";
     return false;
   }
-  // Checks on the state the step leaves. Its rotations are the next step's phase 1, so
-  // computing them here costs only the energy sum.
+  // Checks on the state the step leaves. They need its rotations and elastic energy, which
+  // the next (sub)step's element pass computes anyway: that pass is made here, for a next
+  // step of the same size, and kept for it (assembled_ahead_) unless a check fails or
+  // something changes the model in between. The work of the loads and of the active
+  // stress is summed first, as the pass overwrites f_active_ with the next step's.
   const bool guard = settings_.max_energy_gain < std::numeric_limits<double>::infinity();
   if (guard || settings_.max_inverted_fraction < 1.0) {
     t0 = Clock::now();
-    const double elastic1 = update_rotations(guard);
-    rotations_current_ = true;
-    r.time.rotations_s += seconds_since(t0);
-    r.inverted_elements = inverted_current_;
-    if (inverted_current_ > settings_.max_inverted_fraction * ne) {
-      why = std::to_string(inverted_current_) + " inverted elements after the step, above max_inverted_fraction";
-      rotations_current_ = false;
-      return false;
-    }
-    if (guard) {
-      // Backward Euler with damping dissipates: the kinetic plus elastic energy may grow
-      // only by the work of the loads and of the active stress, h (f_ext + f_active) . v.
-      double kinetic1 = 0, work = 0;
+    double kinetic1 = 0, work = 0;
+    if (guard)
       for (int n = 0; n < nn; ++n) {
         kinetic1 += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
         Vec3 f = f_ext_.segment<3>(3 * n);
         if (active) f += f_active_.segment<3>(3 * n);
         work += h * f.dot(v_.segment<3>(3 * n));
       }
+    const double t_next = time_s_ + h;  // the time this step ends, as the next one sees it
+    const double elastic1 = assemble_elements(h, t_next + h);
+    assembled_ahead_ = true;
+    ahead_h_ = h;
+    ahead_elastic_j_ = elastic1;
+    r.time.assembly_s += seconds_since(t0);
+    r.inverted_elements = inverted_current_;
+    if (inverted_current_ > settings_.max_inverted_fraction * ne) {
+      why = std::to_string(inverted_current_) + " inverted elements after the step, above max_inverted_fraction";
+      rotations_current_ = false;
+      assembled_ahead_ = false;
+      return false;
+    }
+    if (guard) {
+      // Backward Euler with damping dissipates: the kinetic plus elastic energy may grow
+      // only by the work of the loads and of the active stress, h (f_ext + f_active) . v.
       const double gain = (kinetic1 + elastic1) - (kinetic + elastic) - work;
       // energy_floor_j_: the energy of a uniform strain of 1e-8, below which energy
       // changes are round-off (and polar tolerance), not dynamics. At the finest substep
@@ -514,6 +544,7 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
                       gain, gain / (kinetic + elastic + std::abs(work) + 1e-300));
         why = buf;
         rotations_current_ = false;
+        assembled_ahead_ = false;
         return false;
       }
     }
@@ -597,6 +628,7 @@ StepReport Simulator::step() {
     vfree_ = vfree0;
     vfree_prev_ = vprev0;
     rotations_current_ = false;
+    assembled_ahead_ = false;
     last_h_ = last_h0;
     if (keep_q) q_ = q0_;
     time_s_ = t_start;
@@ -645,6 +677,7 @@ void Simulator::set_region_material(int region, const Material& material) {
     throw std::invalid_argument("set_region_material: no region " + std::to_string(region));
   model_.region_materials[static_cast<size_t>(region)] = material;
   region_law_[static_cast<size_t>(region)] = SpencerConstants::of(material);
+  assembled_ahead_ = false;
   update_node_masses();
   solver_->invalidate();
   refresh_external_forces();
@@ -658,6 +691,7 @@ void Simulator::set_region_damping(int region, const RayleighDamping& damping) {
   model_.region_damping[static_cast<size_t>(region)] = damping;
   for (int e = 0; e < model_.mesh.num_elements(); ++e)
     if (model_.mesh.regions()[static_cast<size_t>(e)] == region) beta_e_[static_cast<size_t>(e)] = damping.stiffness_s;
+  assembled_ahead_ = false;
   update_node_masses();
   solver_->invalidate();
 }
@@ -681,6 +715,7 @@ void Simulator::set_fibers(std::vector<Vec3> fibers) {
     if (fibers[i] == model_.fibers[i]) continue;
     model_.fibers[i] = fibers[i];
     elements_[i].fiber = fibers[i];
+    assembled_ahead_ = false;  // the active stress follows the fiber, isotropic or not
     if (!model_.region_materials[static_cast<size_t>(model_.mesh.regions()[i])].is_isotropic()) matrix_changed = true;
   }
   if (matrix_changed) solver_->invalidate();
@@ -692,6 +727,7 @@ void Simulator::set_time_step(double dt_s) {
   s.validate();
   if (s.dt_s != settings_.dt_s) solver_->invalidate();
   settings_ = s;
+  assembled_ahead_ = false;
 }
 
 void Simulator::set_gravity(const Vec3& g) {
@@ -711,6 +747,7 @@ void Simulator::set_loads(const Loads& loads) {
 void Simulator::set_solver_settings(const SolverSettings& s) {
   s.validate();
   settings_.solver = s;
+  assembled_ahead_ = false;
   solver_ = make_linear_solver(s);
   solver_->set_blocks(sys_.node_block_starts());
 }
@@ -720,10 +757,12 @@ void Simulator::set_rotation_method(RotationMethod m) {
     for (size_t i = 0; i < R_.size(); ++i) q_[i] = Eigen::Quaterniond(R_[i]);
   settings_.rotation = m;
   rotations_current_ = false;
+  assembled_ahead_ = false;
 }
 
 void Simulator::set_corotation(bool on) {
   rotations_current_ = false;
+  assembled_ahead_ = false;
   if (on != settings_.corotation) solver_->invalidate();
   settings_.corotation = on;
 }
@@ -731,6 +770,7 @@ void Simulator::set_corotation(bool on) {
 void Simulator::set_active_tension(std::vector<double> tension_pa) {
   if (model_.contraction.enabled())
     throw std::invalid_argument("set_active_tension: the model's contraction schedule sets the tension");
+  assembled_ahead_ = false;
   if (tension_pa.empty()) {
     active_.clear();
     return;
@@ -746,6 +786,7 @@ void Simulator::set_active_tension(std::vector<double> tension_pa) {
 
 void Simulator::set_contraction(Contraction contraction) {
   contraction.validate(model_.mesh.num_regions(), model_.mesh.num_elements());
+  assembled_ahead_ = false;
   const bool was_on = model_.contraction.enabled();
   const bool on = contraction.enabled();
   if (on) {

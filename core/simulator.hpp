@@ -199,8 +199,9 @@ class Simulator {
   void update_node_masses();
   void apply_fixed();
   void update_block_rotations();
-  double update_rotations(bool with_energy);
+  double assemble_elements(double h, double t_end_s);
   Mat3 element_gradient(int e) const;
+  Mat3 element_edges(int e) const;
   int rotate_elements(const int* elems, int n, const Mat3* F);
 
   Model model_;
@@ -237,6 +238,13 @@ class Simulator {
   double last_h_ = -1;
   Eigen::VectorXd f_active_;        // 3N, active-stress forces of the step (when active)
   bool rotations_current_ = false;  // R_ belongs to x_ (computed by the last step's checks)
+  // The checks of the last (sub)step made the next step's element pass (assemble_elements)
+  // for step size ahead_h_: sys_ (without the mass terms), f_, f_active_ and active_ belong
+  // to x_, and ahead_elastic_j_ is its elastic energy. Anything that changes what the pass
+  // reads (material, damping, fibers, tension, contraction, state) clears it.
+  bool assembled_ahead_ = false;
+  double ahead_h_ = 0;
+  double ahead_elastic_j_ = 0;
   int inverted_current_ = 0;
   double energy_floor_j_ = 0;
   std::vector<ThreadAcc> acc_;

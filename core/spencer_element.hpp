@@ -29,7 +29,8 @@
 /// eps = sym(R^T F) - I exactly for a linear tetrahedron, so f_a = -V R sigma g_a and the
 /// energy is V sigma : eps / 2. Per element this reads 22 numbers instead of 144 and
 /// costs about 600 multiply-adds. tests/core/spencer_element_test.cpp checks every
-/// formula against element_stiffness and corotated_force.
+/// formula against element_stiffness and corotated_force (spencer_force_lanes against
+/// spencer_force and a long double evaluation).
 
 #include "core/material.hpp"
 #include "core/types.hpp"
@@ -127,6 +128,53 @@ inline void spencer_upper_blocks(const T k[5], const T R[9], const T Dm_inv[9], 
           out[9 * blk + 3 * i + j] = v;
         }
     }
+}
+
+/// spencer_force for one element (T = double) or one per lane (T a SIMD vector of doubles,
+/// as in spencer_upper_blocks). Inputs per lane: k = {lambda, mu_T, alpha, gamma, beta}
+/// times V; R, Dm_inv and D = Ds - Dm row-major (D's column j is
+/// (x_{j+1} - x_0) - Dm.col(j), so F = I + D Dm^-1); f the unit fiber. Output:
+/// fe[3 a + c] = component c of f_a = -V R sigma g_a, and energy = V sigma : eps / 2
+/// (assigned, not added). The strain is sym(R^T D Dm^-1) + sym(R^T) - I, never formed
+/// through I + D Dm^-1: its round-off is relative to the displacement, and it is exactly
+/// zero at rest (D = 0, R = I). The stress is kept negated (S = -sigma) so the forces
+/// need no sign flips. About 160 multiplies per call.
+template <class T>
+inline void spencer_force_lanes(const T k[5], const T R[9], const T Dm_inv[9], const T D[9], const T f[3], T fe[12],
+                                T& energy) {
+  T M[3][3], N[3][3], e[3][3], ef[3], u[3], S[3][3], P[3][3];
+  // M = R^T D, N = M Dm^-1 = R^T (F - I).
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) M[i][j] = R[i] * D[j] + R[3 + i] * D[3 + j] + R[6 + i] * D[6 + j];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) N[i][j] = M[i][0] * Dm_inv[j] + M[i][1] * Dm_inv[3 + j] + M[i][2] * Dm_inv[6 + j];
+  for (int i = 0; i < 3; ++i) {
+    e[i][i] = N[i][i] + (R[4 * i] - 1.0);
+    for (int j = i + 1; j < 3; ++j) e[i][j] = e[j][i] = 0.5 * ((N[i][j] + N[j][i]) + (R[3 * i + j] + R[3 * j + i]));
+  }
+  // -sigma = -2 mu_T eps - (lambda tr + alpha fef) I - (f u^T + u f^T),
+  // u = (alpha tr + beta fef) / 2 f + 2 gamma eps f (spencer_stress).
+  for (int i = 0; i < 3; ++i) ef[i] = e[i][0] * f[0] + e[i][1] * f[1] + e[i][2] * f[2];
+  const T tr = e[0][0] + e[1][1] + e[2][2], fef = f[0] * ef[0] + f[1] * ef[1] + f[2] * ef[2];
+  const T m2 = -2.0 * k[1], g2 = -2.0 * k[3];
+  const T nd = -(k[0] * tr + k[2] * fef), hb = -0.5 * (k[2] * tr + k[4] * fef);
+  for (int i = 0; i < 3; ++i) u[i] = hb * f[i] + g2 * ef[i];  // -u
+  for (int i = 0; i < 3; ++i) {
+    const T fu = f[i] * u[i];
+    S[i][i] = m2 * e[i][i] + nd + (fu + fu);
+    for (int j = i + 1; j < 3; ++j) S[i][j] = S[j][i] = m2 * e[i][j] + (f[i] * u[j] + u[i] * f[j]);
+  }
+  // sigma : eps / 2 with sigma = -S (k carries V).
+  energy = -0.5 * (S[0][0] * e[0][0] + S[1][1] * e[1][1] + S[2][2] * e[2][2]) -
+           (S[0][1] * e[0][1] + S[0][2] * e[0][2] + S[1][2] * e[1][2]);
+  // P = R S = -V R sigma; f_a = P g_a for a = 1..3 (rows of Dm^-1), f_0 = -(f_1 + f_2 + f_3).
+  for (int c = 0; c < 3; ++c)
+    for (int j = 0; j < 3; ++j) P[c][j] = R[3 * c] * S[0][j] + R[3 * c + 1] * S[1][j] + R[3 * c + 2] * S[2][j];
+  for (int c = 0; c < 3; ++c) {
+    for (int a = 1; a < 4; ++a)
+      fe[3 * a + c] = P[c][0] * Dm_inv[3 * a - 3] + P[c][1] * Dm_inv[3 * a - 2] + P[c][2] * Dm_inv[3 * a - 1];
+    fe[c] = -(fe[3 + c] + fe[6 + c] + fe[9 + c]);
+  }
 }
 
 /// Elastic force f_a = -V R sigma g_a of the four nodes (12), with sigma the stress of the

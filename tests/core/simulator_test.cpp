@@ -18,6 +18,8 @@
 #include <omp.h>
 
 #include <cmath>
+#include <functional>
+#include <limits>
 #include <random>
 
 namespace core = fiberfem::core;
@@ -546,6 +548,61 @@ TEST(Simulator, ParameterChangesBetweenSteps) {
   core::Positions xs;
   ASSERT_TRUE(core::solve_static(changed, xs).converged);
   EXPECT_LT(max_abs_diff(sim.positions(), xs), 1e-6 * max_displacement(xs, model.mesh));
+}
+
+// With the energy check on, the checks of a step make the next step's element pass ahead
+// of time (assembled_ahead_). A change of what that pass reads (material, damping, fibers,
+// active tension) between two steps must reach the very next step: the step after the
+// change equals the step of a simulator built with the changed model from the same
+// checkpoint (whose first step makes its own pass), and differs from the unchanged step.
+TEST(Simulator, ChangesBetweenStepsReachTheNextStepDespiteTheAssemblyAhead) {
+  core::CantileverSpec spec = small_beam();
+  spec.material = heart_like();
+  core::Model model = core::make_cantilever(spec);
+  core::SimulatorSettings st = settings(core::LinearSolverKind::pcg, 1e-10);
+  st.dt_s = 0.01;
+  ASSERT_LT(st.max_energy_gain, std::numeric_limits<double>::infinity());  // the check is on by default
+  const int ne = model.mesh.num_elements();
+  const core::Material softer = core::Material::from_engineering(
+      [] {
+        core::EngineeringConstants c = heart_like();
+        c.E_L *= 0.5;
+        c.E_T *= 0.7;
+        c.G_L *= 0.6;
+        return c;
+      }(),
+      spec.density_kg_m3);
+  std::vector<Vec3> turned(static_cast<size_t>(ne), Vec3(0, 0.6, 0.8));
+  const std::vector<double> tension(static_cast<size_t>(ne), 3e3);
+  struct Change {
+    const char* name;
+    std::function<void(core::Simulator&)> apply;
+  };
+  const std::vector<Change> changes = {
+      {"material", [&](core::Simulator& s) { s.set_region_material(0, softer); }},
+      {"damping", [&](core::Simulator& s) { s.set_region_damping(0, {2.0, 5e-3}); }},
+      {"fibers", [&](core::Simulator& s) { s.set_fibers(turned); }},
+      {"active tension", [&](core::Simulator& s) { s.set_active_tension(tension); }},
+  };
+  core::Simulator plain(model, st);
+  for (int i = 0; i < 4; ++i) ASSERT_NE(plain.step().status, core::StepStatus::failed);
+  const core::SimulatorCheckpoint cp = plain.checkpoint();
+  ASSERT_NE(plain.step().status, core::StepStatus::failed);
+  const core::Positions unchanged = plain.positions();
+  for (const Change& c : changes) {
+    SCOPED_TRACE(c.name);
+    core::Simulator live(model, st);
+    for (int i = 0; i < 4; ++i) ASSERT_NE(live.step().status, core::StepStatus::failed);
+    c.apply(live);
+    ASSERT_NE(live.step().status, core::StepStatus::failed);
+    core::Simulator fresh(model, st);
+    fresh.restore(cp);
+    c.apply(fresh);
+    ASSERT_NE(fresh.step().status, core::StepStatus::failed);
+    const double scale = max_displacement(unchanged, model.mesh);
+    EXPECT_LE(max_abs_diff(live.positions(), fresh.positions()), 1e-12 * scale);
+    EXPECT_GT(max_abs_diff(live.positions(), unchanged), 1e-6 * scale);  // the change matters
+  }
 }
 
 // The report's energies are those of the state the step started from.
