@@ -562,14 +562,23 @@ void Simulator::update_block_rotations() {
     std::fill(block_R_.begin(), block_R_.end(), Mat3::Identity());
     return;
   }
+  const int nbatch = (nb + 3) / 4;  // four blocks at a time (rotation_polar_batch)
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < nb; ++k) {
-    const int n = block_node_[static_cast<size_t>(k)];
-    Mat3 sum = Mat3::Zero();
-    for (int j = node_elem_start_[static_cast<size_t>(n)]; j < node_elem_start_[static_cast<size_t>(n) + 1]; ++j)
-      sum += R_[static_cast<size_t>(node_elems_[static_cast<size_t>(j)])];
-    rotation_polar(sum, block_q_[static_cast<size_t>(k)], 20, 1e-6);
-    block_R_[static_cast<size_t>(k)] = block_q_[static_cast<size_t>(k)].toRotationMatrix();
+  for (int b = 0; b < nbatch; ++b) {
+    const int n4 = std::min(4, nb - 4 * b);
+    Mat3 sum[4];
+    Eigen::Quaterniond* q[4];
+    Mat3* R[4];
+    for (int l = 0; l < n4; ++l) {
+      const size_t k = static_cast<size_t>(4 * b + l);
+      const int n = block_node_[k];
+      sum[l].setZero();
+      for (int j = node_elem_start_[static_cast<size_t>(n)]; j < node_elem_start_[static_cast<size_t>(n) + 1]; ++j)
+        sum[l] += R_[static_cast<size_t>(node_elems_[static_cast<size_t>(j)])];
+      q[l] = &block_q_[k];
+      R[l] = &block_R_[k];
+    }
+    rotation_polar_batch(sum, q, R, n4, 1e-6);
   }
 }
 
