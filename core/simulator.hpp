@@ -53,8 +53,13 @@ const char* to_string(StepStatus s);
 
 /// Wall time of the phases of one step, seconds.
 struct PhaseTimes {
-  double rotations_s = 0;  ///< Deformation gradients and rotation extraction.
-  double assembly_s = 0;   ///< Warped stiffness, forces, system matrix and right-hand side.
+  /// Rotation extraction outside the element pass: 0 since the rotations are part of
+  /// that pass (kept for the report and status formats).
+  double rotations_s = 0;
+  /// The element pass (deformation gradients, rotations, warped stiffness, forces and
+  /// energy, including the one the checks make ahead for the next step), the mass terms
+  /// and the right-hand side.
+  double assembly_s = 0;
   double solve_s = 0;      ///< Linear solve.
   double total_s = 0;      ///< Whole step, including retries.
 };
