@@ -398,10 +398,11 @@ double sum_rows(int n, bool parallel, Body&& body) {
 /// are counted as products with A.
 class Pcg {
  public:
-  /// `precondition(r, z)` writes z = M^-1 r.
+  /// `precondition(r, z)` writes z = M^-1 r. `Ax`, when given, is A x for the initial
+  /// guess (the recycled projection has it): the first residual then needs no product.
   template <class Precondition>
   SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x, double tol, int max_iterations,
-                   Precondition&& precondition) {
+                   Precondition&& precondition, const Eigen::VectorXd* Ax = nullptr) {
     const int n = static_cast<int>(b.size());
     r_.resize(n);
     z_.resize(n);
@@ -419,7 +420,10 @@ class Pcg {
     // own sparse product: more than 20,000 non-zeros); short passes stay on one thread.
     const bool par = n > kParallelRows;
 
-    product(A, x, r_);
+    if (Ax)
+      r_ = *Ax;
+    else
+      product(A, x, r_);
     double rr = sum_rows(n, par, [&](int i) {
       r_[i] = b[i] - r_[i];
       return r_[i] * r_[i];
@@ -488,6 +492,7 @@ class PcgSolver final : public LinearSolver {
     scaled_b_ = b_in / bn;
     const Eigen::VectorXd& b = scaled_b_;
     x /= bn;
+    guess_product_ = false;
     if (s_.warm_start) project_guess(A, b, x);
     SolveStats st = solve_scaled(A, b, x);
     if (st.ok && s_.warm_start) remember(x);
@@ -507,6 +512,12 @@ class PcgSolver final : public LinearSolver {
   using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 64, 1>;
   SmallMatrix G_;
   SmallVector Wb_;
+  // A W, row by row, from the projection's pass, and A x0 = (A W) y for its guess: PCG's
+  // first residual then needs no product with A (one of the 2 to 3 products of a step at
+  // the interactive tolerance).
+  RowMajorMatrix AW_;
+  Eigen::VectorXd guess_Ax_;
+  bool guess_product_ = false;  // guess_Ax_ is A x for the x solve_scaled starts from
   Eigen::SelfAdjointEigenSolver<SmallMatrix> eig_;
 
   void remember(const Eigen::VectorXd& x) {
@@ -541,6 +552,8 @@ class PcgSolver final : public LinearSolver {
     const int rows = static_cast<int>(A.rows());
     const double* w = history_.data();
     const Eigen::Index stride = history_.cols();
+    AW_.resize(rows, stride);  // no allocation after the first solve of a size
+    double* aw = AW_.data();
     G_.setZero(m, m);
     Wb_.setZero(m);
     // Rows [begin, end) into G_ and Wb_ (through per-thread sums when threaded).
@@ -552,6 +565,7 @@ class PcgSolver final : public LinearSolver {
         for (int r = begin; r < end; ++r) {
           V8 acc = V8::Zero();
           for (int p = outer[r]; p < outer[r + 1]; ++p) acc += val[p] * Eigen::Map<const V8>(w + inner[p] * 8);
+          Eigen::Map<V8>(aw + r * 8) = acc;
           const Eigen::Map<const V8> wr(w + r * 8);
           wb8 += b[r] * wr;
           g8.noalias() += wr * acc.transpose();
@@ -568,6 +582,7 @@ class PcgSolver final : public LinearSolver {
           const double* wr = w + inner[p] * stride;
           for (int k = 0; k < m; ++k) acc[k] += v * wr[k];
         }
+        for (int k = 0; k < m; ++k) aw[r * stride + k] = acc[k];
         const double* wr = w + r * stride;
         for (int k = 0; k < m; ++k) {
           wb[k] += wr[k] * b[r];
@@ -602,10 +617,14 @@ class PcgSolver final : public LinearSolver {
     for (int k = 0; k < m; ++k) c(k) = lambda(k) > 1e-12 * top ? c(k) / lambda(k) : 0.0;
     SmallVector y(m);
     y.noalias() = eig_.eigenvectors() * c;
-    if (y.allFinite()) x.noalias() = W * y;
+    if (!y.allFinite()) return;
+    x.noalias() = W * y;
+    guess_Ax_.noalias() = AW_.leftCols(m) * y;
+    guess_product_ = true;
   }
   SolveStats solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
-    if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_pre_, A, b, x);
+    const Eigen::VectorXd* Ax0 = guess_product_ ? &guess_Ax_ : nullptr;
+    if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_pre_, A, b, x, Ax0);
     SolveStats st;
     FactorSlot& slot = select_slot();
     warp_.slot = &slot;
@@ -614,7 +633,7 @@ class PcgSolver final : public LinearSolver {
     warp_.update_warp();
     first_guess_ = x;
     const Eigen::VectorXd& x0 = first_guess_;
-    SolveStats cg = run(warp_pre_, A, b, x);
+    SolveStats cg = run(warp_pre_, A, b, x, Ax0);
     if (!cg.ok && st.factorizations == 0) {
       // The old factor was too far from this matrix: refresh it and solve again.
       refactor(A, slot, st);
@@ -622,7 +641,7 @@ class PcgSolver final : public LinearSolver {
       warp_.update_warp();
       const int first = cg.iterations;
       x = x0;
-      cg = run(warp_pre_, A, b, x);
+      cg = run(warp_pre_, A, b, x, Ax0);
       cg.iterations += first;
     }
     cg.factorizations = st.factorizations;
@@ -733,10 +752,12 @@ class PcgSolver final : public LinearSolver {
 
  private:
   template <class Preconditioner>
-  SolveStats run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  SolveStats run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                 const Eigen::VectorXd* Ax0) {
     pre.compute(A);
-    return pcg_.solve(A, b, x, s_.tolerance, s_.max_iterations,
-                      [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { pre._solve_impl(r, z); });
+    return pcg_.solve(
+        A, b, x, s_.tolerance, s_.max_iterations, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { pre._solve_impl(r, z); },
+        Ax0);
   }
   void refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats& st) {
     slot.factor.set_single_precision(s_.single_precision_preconditioner);
