@@ -323,8 +323,7 @@ double Simulator::assemble_elements(double h, double t_end_s) {
     }
   }
   const bool rest_frame_active = con.enabled() && con.mode == ContractionMode::nodal_forces;
-  sys_.zero_matrix();
-  f_.setZero(sys_.num_dofs());
+  f_.setZero(sys_.num_dofs());  // (assemble_batched replaces the matrix values)
   const bool active = !active_.empty();
   // The active forces' own vector is needed only for the energy check's work balance.
   const bool track_active_work = active && settings_.max_energy_gain < std::numeric_limits<double>::infinity();

@@ -132,6 +132,48 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
       colour_chunks_ = natural_chunks;
     }
   }
+  plan_zeroing(n);
+}
+
+void SparseSystem::plan_zeroing(int n) {
+  // Each node's rows are zeroed by the first chunk, in the loop's order (colour by colour),
+  // that holds the node: no chunk of that colour or an earlier one writes them, and later
+  // colours start after it. A free node's rows are consecutive, so its values are one range.
+  const int* outer = A_.outerIndexPtr();
+  std::vector<int> first_chunk(static_cast<size_t>(n), -1);
+  for (const std::vector<int>& chunks : colour_chunks_)
+    for (int ch : chunks) {
+      const int begin = ch * chunk_size_, end = std::min(begin + chunk_size_, static_cast<int>(tets_.size()));
+      for (int k = begin; k < end; ++k)
+        for (int v : tets_[static_cast<size_t>(order_[static_cast<size_t>(k)])])
+          if (first_chunk[static_cast<size_t>(v)] < 0) first_chunk[static_cast<size_t>(v)] = ch;
+    }
+  const int num_chunks = (static_cast<int>(tets_.size()) + chunk_size_ - 1) / chunk_size_;
+  std::vector<std::vector<std::pair<int, int>>> per_chunk(static_cast<size_t>(num_chunks));
+  for (int v = 0; v < n; ++v) {
+    int lo = -1, hi = -1;  // free rows of node v
+    for (int c = 0; c < 3; ++c) {
+      const int r = free_index_[static_cast<size_t>(3 * v + c)];
+      if (r < 0) continue;
+      if (lo < 0) lo = r;
+      hi = r;
+    }
+    if (lo < 0) continue;
+    const int ch = first_chunk[static_cast<size_t>(v)];
+    if (ch < 0) throw std::logic_error("sparse pattern: a free node in no element");
+    auto& ranges = per_chunk[static_cast<size_t>(ch)];
+    if (!ranges.empty() && ranges.back().second == outer[lo])
+      ranges.back().second = outer[hi + 1];  // merge with the previous node's rows
+    else
+      ranges.emplace_back(outer[lo], outer[hi + 1]);
+  }
+  zero_begin_.assign(static_cast<size_t>(num_chunks) + 1, 0);
+  zero_ranges_.clear();
+  for (int ch = 0; ch < num_chunks; ++ch) {
+    zero_begin_[static_cast<size_t>(ch)] = static_cast<int>(zero_ranges_.size());
+    zero_ranges_.insert(zero_ranges_.end(), per_chunk[static_cast<size_t>(ch)].begin(), per_chunk[static_cast<size_t>(ch)].end());
+  }
+  zero_begin_[static_cast<size_t>(num_chunks)] = static_cast<int>(zero_ranges_.size());
 }
 
 void SparseSystem::colour_chunks(int n) {

@@ -13,6 +13,7 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <chrono>
@@ -421,4 +422,48 @@ TEST(SparseSystem, ScatteredElementOrderIsRechunkedInSpace) {
   for (auto& c : calls) EXPECT_EQ(c.load(), 1);
   EXPECT_LT((Eigen::MatrixXd(sys.matrix()) - K_ref).norm(), 1e-13 * K_ref.norm());
   EXPECT_LT((f - f_ref).norm(), 1e-13 * f_ref.norm());
+}
+
+// assemble_batched against a dense assembly: each lane's upper blocks land in both
+// triangles, the forces add up, and the values are replaced, not added to (each node's
+// rows are zeroed inside the parallel loop by the first chunk that writes them): the
+// matrix starts full of NaN and of an earlier assembly. Chunk sizes from one element (many
+// colours) to all of them (one chunk); with fixed DOFs (the general scatter); and with the
+// elements shuffled, so that the chunks are scattered over the body and the order is
+// replaced by the Morton order (the zeroing plan follows whichever order is kept).
+TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
+  core::TetMesh ordered = box({5, 3, 4});
+  std::vector<core::Tet> shuffled_tets = ordered.tets();
+  std::shuffle(shuffled_tets.begin(), shuffled_tets.end(), std::mt19937(7));
+  core::TetMesh shuffled(ordered.rest_positions(), shuffled_tets);
+  for (const auto& [name, nodes] : ordered.node_sets()) shuffled.set_node_set(name, nodes);
+  for (const core::TetMesh* mesh : {&ordered, &shuffled})
+    for (int chunk : {1, 5, 32, 100000})
+      for (bool with_fixed : {false, true}) {
+        const std::vector<std::uint8_t> fixed = with_fixed ? partly_fixed(*mesh) : std::vector<std::uint8_t>{};
+        Eigen::VectorXd f_ref;
+        const Eigen::MatrixXd K_ref =
+            restrict_dense(dense_assembly(*mesh, random_block, &f_ref), free_dofs(fixed, 3 * mesh->num_nodes()));
+        core::SparseSystem sys(*mesh, fixed, chunk);
+        auto kernel = [](const int* elems, int n, core::ElementBatch& batch) {
+          for (int l = 0; l < n; ++l) {
+            const Mat12 K = random_block(elems[l]);
+            for (int a = 0; a < 4; ++a)
+              for (int b = a; b < 4; ++b)
+                for (int i = 0; i < 3; ++i)
+                  for (int j = 0; j < 3; ++j)
+                    batch.upper[9 * core::ElementBatch::block_index(a, b) + 3 * i + j][l] = K(3 * a + i, 3 * b + j);
+            batch.force[l] = random_force(elems[l]);
+          }
+        };
+        std::fill(sys.matrix().valuePtr(), sys.matrix().valuePtr() + sys.matrix().nonZeros(), std::nan(""));
+        for (int pass = 0; pass < 2; ++pass) {
+          Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
+          sys.assemble_batched(kernel, f);
+          const Eigen::MatrixXd K = sys.matrix();
+          ASSERT_TRUE(K.allFinite()) << "chunk " << chunk << " fixed " << with_fixed << " pass " << pass;
+          EXPECT_LT((K - K_ref).norm(), 1e-13 * K_ref.norm()) << "chunk " << chunk << " fixed " << with_fixed;
+          EXPECT_LT((f - f_ref).norm(), 1e-13 * f_ref.norm());
+        }
+      }
 }
