@@ -458,7 +458,8 @@ class Pcg {
 
  private:
   // y = A v over the rows (A symmetric with both triangles stored); returns v . A v.
-  static double product(const SparseMatrix& A, const Eigen::VectorXd& v, Eigen::VectorXd& y) {
+  double product(const SparseMatrix& A, const Eigen::VectorXd& v, Eigen::VectorXd& y) const {
+    if (blocks_) return blocks_->block_product(v, y, A.nonZeros() > 20000);
     const int* outer = A.outerIndexPtr();
     const int* inner = A.innerIndexPtr();
     const double* val = A.valuePtr();
@@ -472,6 +473,10 @@ class Pcg {
   }
   static constexpr int kParallelRows = 20000;
   Eigen::VectorXd r_, z_, p_, q_;
+
+ public:
+  /// Products from this system's upper blocks (current), or from A's CSR values (nullptr).
+  const SparseSystem* blocks_ = nullptr;
 };
 
 class PcgSolver final : public LinearSolver {
@@ -491,6 +496,13 @@ class PcgSolver final : public LinearSolver {
     if (!std::isfinite(bn)) return failed({});
     scaled_b_ = b_in / bn;
     const Eigen::VectorXd& b = scaled_b_;
+    // The upper block store when it holds this matrix (the simulator's step) and this
+    // solver's passes have a block form (the cholesky preconditioner; the projection with
+    // eight recycled solutions); otherwise the CSR values, synced.
+    use_blocks_ = system_ && system_->blocks_current() && &A == &system_->matrix() &&
+                  s_.preconditioner == PreconditionerKind::cholesky && (!s_.warm_start || s_.recycled_solutions == 8);
+    if (system_ && system_->blocks_current() && !use_blocks_) system_->sync_matrix();
+    pcg_.blocks_ = use_blocks_ ? system_ : nullptr;
     x /= bn;
     guess_product_ = false;
     if (s_.warm_start) project_guess(A, b, x);
@@ -590,7 +602,40 @@ class PcgSolver final : public LinearSolver {
         }
       }
     };
-    if (A.nonZeros() > 20000) {
+    if (use_blocks_ && stride == 8) {
+      // A W from the upper blocks (one pass for all eight columns), then W^T (A W), W^T b.
+      const bool par = A.nonZeros() > 20000;
+      system_->block_product8(w, aw, par);
+      using V8 = Eigen::Matrix<double, 8, 1>;
+      using M8 = Eigen::Matrix<double, 8, 8>;
+      auto sum = [&](int begin, int end, M8& g8, V8& wb8) {
+        for (int r = begin; r < end; ++r) {
+          const Eigen::Map<const V8> wr(w + r * 8);
+          g8.noalias() += wr * Eigen::Map<const V8>(aw + r * 8).transpose();
+          wb8 += b[r] * wr;
+        }
+      };
+      M8 g8 = M8::Zero();
+      V8 wb8 = V8::Zero();
+      if (par) {
+#pragma omp parallel
+        {
+          M8 g = M8::Zero();
+          V8 wb = V8::Zero();
+          const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+          sum(static_cast<int>(static_cast<long>(rows) * t / nt), static_cast<int>(static_cast<long>(rows) * (t + 1) / nt), g, wb);
+#pragma omp critical(fiberfem_recycled_projection)
+          {
+            g8 += g;
+            wb8 += wb;
+          }
+        }
+      } else {
+        sum(0, rows, g8, wb8);
+      }
+      G_ = g8.topLeftCorner(m, m);
+      Wb_ = wb8.head(m);
+    } else if (A.nonZeros() > 20000) {
 #pragma omp parallel
       {
         SmallMatrix g = SmallMatrix::Zero(m, m);
@@ -687,6 +732,8 @@ class PcgSolver final : public LinearSolver {
     for (auto& sl : slots_) sl->stale = true;
   }
   void set_matrix_key(double key) override { key_ = key; }
+  void set_system(SparseSystem* system) override { system_ = system; }
+  bool reads_blocks() const override { return true; }
   void forget_solutions() override { history_count_ = history_next_ = 0; }
   LinearSolverState save_state() const override {
     LinearSolverState st;
@@ -760,6 +807,7 @@ class PcgSolver final : public LinearSolver {
         Ax0);
   }
   void refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats& st) {
+    if (use_blocks_) system_->sync_matrix();  // the factorisation reads the CSR values (of A)
     slot.factor.set_single_precision(s_.single_precision_preconditioner);
     slot.factor.factorize(A);
     slot.at_factor = warp_.current;
@@ -778,6 +826,8 @@ class PcgSolver final : public LinearSolver {
   BlockJacobiPreconditioner jacobi_pre_;
   WarpState warp_;
   WarpCholeskyPreconditioner warp_pre_;
+  SparseSystem* system_ = nullptr;
+  bool use_blocks_ = false;
   Eigen::VectorXd scaled_b_, first_guess_;  // solve()'s b / |b| and solve_scaled()'s x0 (kept: no allocation)
   std::vector<std::unique_ptr<FactorSlot>> slots_;
   double key_ = 0;

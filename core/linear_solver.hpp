@@ -116,6 +116,12 @@ class LinearSolver {
   /// The state jumped (reset, set_state): forget remembered solutions, so a run from a
   /// state does not depend on what was solved before it.
   virtual void forget_solutions() {}
+  /// The system the matrices come from: a solver that can work from its upper block store
+  /// (SparseSystem::has_blocks) reads the blocks while they are current and calls
+  /// sync_matrix() before anything that needs the CSR values (a factorisation).
+  virtual void set_system(SparseSystem* /*system*/) {}
+  /// Whether solve() handles a matrix whose blocks are current (else the caller syncs first).
+  virtual bool reads_blocks() const { return false; }
   /// Names the family of the next matrices (the simulator passes the step size h):
   /// solvers that reuse factorisations keep one per family.
   virtual void set_matrix_key(double /*key*/) {}

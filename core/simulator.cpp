@@ -78,6 +78,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   refresh_external_forces();
   solver_ = make_linear_solver(settings_.solver);
   solver_->set_blocks(sys_.node_block_starts());
+  solver_->set_system(&sys_);
   const int nn = model_.mesh.num_nodes();
   for (int n = 0; n < nn; ++n)
     for (int c = 0; c < 3; ++c)
@@ -441,7 +442,6 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   assembled_ahead_ = false;
   const bool active = !active_.empty();
   r.inverted_elements = inverted_current_;
-  double* values = sys_.matrix().valuePtr();
   const auto& fi = sys_.free_index();
   const int nn = model_.mesh.num_nodes();
   rhs_.resize(sys_.num_free());
@@ -450,7 +450,7 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
     for (int c = 0; c < 3; ++c) {
       const int k = fi[static_cast<size_t>(3 * n + c)];
       if (k < 0) continue;
-      values[sys_.diagonal_index()[static_cast<size_t>(k)]] += md;
+      sys_.add_to_diagonal(k, md);
       rhs_(k) = mass_(n) * v_(3 * n + c) + h * (f_ext_(3 * n + c) + f_(3 * n + c));
     }
   }
@@ -480,6 +480,7 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
     update_block_rotations();
     solver_->set_block_rotations(block_R_);
   }
+  if (!solver_->reads_blocks()) sys_.sync_matrix();
   const SolveStats st = solver_->solve(sys_.matrix(), rhs_, vfree_);
   r.solver_factorizations += st.factorizations;
   r.time.solve_s += seconds_since(t0);
@@ -758,6 +759,7 @@ void Simulator::set_solver_settings(const SolverSettings& s) {
   assembled_ahead_ = false;
   solver_ = make_linear_solver(s);
   solver_->set_blocks(sys_.node_block_starts());
+  solver_->set_system(&sys_);
 }
 
 void Simulator::set_rotation_method(RotationMethod m) {

@@ -1,6 +1,7 @@
 #include "core/sparse_system.hpp"
 
 #include <algorithm>
+#include <omp.h>
 #include <cstdint>
 #include <stdexcept>
 
@@ -92,6 +93,8 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
           }
   }
 
+  build_blocks(adj);
+
   // Chunks of consecutive elements, coloured so that no two chunks of a colour share a
   // node. The mesh's own element order is kept when it is local (the box generator's,
   // cell by cell, which also follows its node numbering); an order that scatters chunks
@@ -149,7 +152,7 @@ void SparseSystem::plan_zeroing(int n) {
           if (first_chunk[static_cast<size_t>(v)] < 0) first_chunk[static_cast<size_t>(v)] = ch;
     }
   const int num_chunks = (static_cast<int>(tets_.size()) + chunk_size_ - 1) / chunk_size_;
-  std::vector<std::vector<std::pair<int, int>>> per_chunk(static_cast<size_t>(num_chunks));
+  std::vector<std::vector<std::pair<int, int>>> per_chunk(static_cast<size_t>(num_chunks)), per_chunk_blocks(static_cast<size_t>(num_chunks));
   for (int v = 0; v < n; ++v) {
     int lo = -1, hi = -1;  // free rows of node v
     for (int c = 0; c < 3; ++c) {
@@ -162,18 +165,218 @@ void SparseSystem::plan_zeroing(int n) {
     const int ch = first_chunk[static_cast<size_t>(v)];
     if (ch < 0) throw std::logic_error("sparse pattern: a free node in no element");
     auto& ranges = per_chunk[static_cast<size_t>(ch)];
-    if (!ranges.empty() && ranges.back().second == outer[lo])
+    auto& branges = per_chunk_blocks[static_cast<size_t>(ch)];
+    // The node's block row (when blocks are kept): the same ranges, in block_values_.
+    const int I = block_ok_ ? node_block_[static_cast<size_t>(v)] : -1;
+    const std::pair<int, int> brow = I >= 0 ? std::pair<int, int>(9 * block_start_[static_cast<size_t>(I)],
+                                                                   9 * block_start_[static_cast<size_t>(I) + 1])
+                                            : std::pair<int, int>(0, 0);
+    if (!ranges.empty() && ranges.back().second == outer[lo] && (!block_ok_ || branges.back().second == brow.first)) {
       ranges.back().second = outer[hi + 1];  // merge with the previous node's rows
-    else
+      if (block_ok_) branges.back().second = brow.second;
+    } else {
       ranges.emplace_back(outer[lo], outer[hi + 1]);
+      if (block_ok_) branges.push_back(brow);
+    }
   }
   zero_begin_.assign(static_cast<size_t>(num_chunks) + 1, 0);
   zero_ranges_.clear();
+  block_zero_ranges_.clear();
   for (int ch = 0; ch < num_chunks; ++ch) {
     zero_begin_[static_cast<size_t>(ch)] = static_cast<int>(zero_ranges_.size());
     zero_ranges_.insert(zero_ranges_.end(), per_chunk[static_cast<size_t>(ch)].begin(), per_chunk[static_cast<size_t>(ch)].end());
+    block_zero_ranges_.insert(block_zero_ranges_.end(), per_chunk_blocks[static_cast<size_t>(ch)].begin(),
+                              per_chunk_blocks[static_cast<size_t>(ch)].end());
   }
   zero_begin_[static_cast<size_t>(num_chunks)] = static_cast<int>(zero_ranges_.size());
+}
+
+void SparseSystem::build_blocks(const std::vector<std::vector<int>>& adj) {
+  // Only when every node is wholly free or wholly fixed: then free node I owns free DOFs
+  // 3I..3I+2 (free indices follow DOF order) and a block is a whole 3 x 3 of the CSR matrix.
+  const int n = static_cast<int>(adj.size());
+  node_block_.assign(static_cast<size_t>(n), -1);
+  int nb = 0;
+  for (int v = 0; v < n; ++v) {
+    int free = 0;
+    for (int c = 0; c < 3; ++c) free += free_index_[static_cast<size_t>(3 * v + c)] >= 0;
+    if (free == 1 || free == 2) return;  // partly fixed: the CSR path
+    if (free == 3) {
+      if (free_index_[static_cast<size_t>(3 * v)] != 3 * nb) return;
+      node_block_[static_cast<size_t>(v)] = nb++;
+    }
+  }
+  block_start_.assign(static_cast<size_t>(nb) + 1, 0);
+  block_col_.clear();
+  for (int v = 0; v < n; ++v) {
+    const int I = node_block_[static_cast<size_t>(v)];
+    if (I < 0) continue;
+    block_start_[static_cast<size_t>(I)] = static_cast<int>(block_col_.size());
+    block_col_.push_back(I);  // the diagonal block first
+    std::vector<int> cols;
+    for (int w : adj[static_cast<size_t>(v)]) {
+      const int J = node_block_[static_cast<size_t>(w)];
+      if (J > I) cols.push_back(J);
+    }
+    std::sort(cols.begin(), cols.end());
+    block_col_.insert(block_col_.end(), cols.begin(), cols.end());
+  }
+  block_start_[static_cast<size_t>(nb)] = static_cast<int>(block_col_.size());
+  block_values_.assign(9 * block_col_.size(), 0.0);
+  auto block_of = [&](int I, int J) {  // J >= I
+    const auto first = block_col_.begin() + block_start_[static_cast<size_t>(I)];
+    const auto last = block_col_.begin() + block_start_[static_cast<size_t>(I) + 1];
+    const auto it = J == I ? first : std::lower_bound(first + 1, last, J);
+    if (it == last || *it != J) throw std::logic_error("block pattern lookup failed");
+    return static_cast<int>(it - block_col_.begin());
+  };
+  element_blocks_.assign(tets_.size() * 10, -1);
+  for (size_t e = 0; e < tets_.size(); ++e)
+    for (int a = 0; a < 4; ++a)
+      for (int b = a; b < 4; ++b) {
+        const int I = node_block_[static_cast<size_t>(tets_[e][a])], J = node_block_[static_cast<size_t>(tets_[e][b])];
+        if (I < 0 || J < 0) continue;
+        element_blocks_[e * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
+            I <= J ? 2 * block_of(I, J) : 2 * block_of(J, I) + 1;
+      }
+  csr_from_block_.assign(static_cast<size_t>(A_.nonZeros()), 0);
+  const int* outer = A_.outerIndexPtr();
+  const int* inner = A_.innerIndexPtr();
+  for (int r = 0; r < num_free_; ++r)
+    for (int p = outer[r]; p < outer[r + 1]; ++p) {
+      const int I = r / 3, J = inner[p] / 3, i = r % 3, j = inner[p] % 3;
+      csr_from_block_[static_cast<size_t>(p)] = I <= J ? 9 * block_of(I, J) + 3 * i + j : 9 * block_of(J, I) + 3 * j + i;
+    }
+  block_ok_ = true;
+}
+
+void SparseSystem::sync_matrix() {
+  if (!blocks_current_) return;
+  double* v = A_.valuePtr();
+  const int nnz = static_cast<int>(A_.nonZeros());
+  const double* b = block_values_.data();
+  const int* src = csr_from_block_.data();
+  if (nnz > 20000) {  // (an `if` clause would still make a team, and allocate, in libgomp)
+#pragma omp parallel for schedule(static)
+    for (int p = 0; p < nnz; ++p) v[p] = b[src[p]];
+  } else {
+    for (int p = 0; p < nnz; ++p) v[p] = b[src[p]];
+  }
+  blocks_current_ = false;
+}
+
+namespace {
+// Rows [begin, end) of the symmetric block product into y (which the caller zeroed);
+// returns the part of x . A x from the stored upper blocks' rows (each off-diagonal block
+// counted twice).
+void block_rows(const int* start, const int* col, const double* val, const double* x, double* y, int begin, int end) {
+  for (int I = begin; I < end; ++I) {
+    const double* xi = x + 3 * I;
+    const int k0 = start[I];
+    const double* d = val + 9 * static_cast<size_t>(k0);
+    double s0 = d[0] * xi[0] + d[1] * xi[1] + d[2] * xi[2];
+    double s1 = d[3] * xi[0] + d[4] * xi[1] + d[5] * xi[2];
+    double s2 = d[6] * xi[0] + d[7] * xi[1] + d[8] * xi[2];
+    for (int k = k0 + 1; k < start[I + 1]; ++k) {
+      const double* b = val + 9 * static_cast<size_t>(k);
+      const double* xj = x + 3 * col[k];
+      double* yj = y + 3 * col[k];
+      s0 += b[0] * xj[0] + b[1] * xj[1] + b[2] * xj[2];
+      s1 += b[3] * xj[0] + b[4] * xj[1] + b[5] * xj[2];
+      s2 += b[6] * xj[0] + b[7] * xj[1] + b[8] * xj[2];
+      yj[0] += b[0] * xi[0] + b[3] * xi[1] + b[6] * xi[2];
+      yj[1] += b[1] * xi[0] + b[4] * xi[1] + b[7] * xi[2];
+      yj[2] += b[2] * xi[0] + b[5] * xi[1] + b[8] * xi[2];
+    }
+    y[3 * I] += s0;
+    y[3 * I + 1] += s1;
+    y[3 * I + 2] += s2;
+  }
+}
+
+// As block_rows for eight right-hand sides at once (W and AW n x 8, row-major).
+void block_rows8(const int* start, const int* col, const double* val, const double* W, double* AW, int begin, int end) {
+  using B3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
+  using R8 = Eigen::Matrix<double, 3, 8, Eigen::RowMajor>;
+  for (int I = begin; I < end; ++I) {
+    const Eigen::Map<const R8> wi(W + 24 * static_cast<size_t>(I));
+    Eigen::Map<R8> ai(AW + 24 * static_cast<size_t>(I));
+    R8 acc = Eigen::Map<const B3>(val + 9 * static_cast<size_t>(start[I])) * wi;
+    for (int k = start[I] + 1; k < start[I + 1]; ++k) {
+      const Eigen::Map<const B3> b(val + 9 * static_cast<size_t>(k));
+      const size_t J = static_cast<size_t>(col[k]);
+      acc.noalias() += b * Eigen::Map<const R8>(W + 24 * J);
+      Eigen::Map<R8>(AW + 24 * J).noalias() += b.transpose() * wi;
+    }
+    ai += acc;
+  }
+}
+}  // namespace
+
+void SparseSystem::block_product8(const double* W, double* AW, bool parallel) const {
+  const int nb = static_cast<int>(block_start_.size()) - 1;
+  const int* start = block_start_.data();
+  const int* col = block_col_.data();
+  const double* val = block_values_.data();
+  const size_t len = 8 * static_cast<size_t>(num_free_);
+  if (!parallel) {
+    std::fill(AW, AW + len, 0.0);
+    block_rows8(start, col, val, W, AW, 0, nb);
+    return;
+  }
+#pragma omp parallel
+  {
+    const int t = omp_get_thread_num(), nt = omp_get_num_threads();
+#pragma omp single
+    thread_aw_.resize(static_cast<size_t>(nt));
+    Eigen::VectorXd& mine = thread_aw_[static_cast<size_t>(t)];
+    mine.setZero(static_cast<Eigen::Index>(len));
+    block_rows8(start, col, val, W, mine.data(), static_cast<int>(static_cast<long>(nb) * t / nt),
+                static_cast<int>(static_cast<long>(nb) * (t + 1) / nt));
+#pragma omp barrier
+#pragma omp for schedule(static)
+    for (long r = 0; r < static_cast<long>(len); ++r) {
+      double s = 0;
+      for (int u = 0; u < nt; ++u) s += thread_aw_[static_cast<size_t>(u)][r];
+      AW[r] = s;
+    }
+  }
+}
+
+double SparseSystem::block_product(const Eigen::VectorXd& x, Eigen::VectorXd& y, bool parallel) const {
+  const int nb = static_cast<int>(block_start_.size()) - 1;
+  const int* start = block_start_.data();
+  const int* col = block_col_.data();
+  const double* val = block_values_.data();
+  if (!parallel) {
+    y.setZero(num_free_);
+    block_rows(start, col, val, x.data(), y.data(), 0, nb);
+    return x.dot(y);
+  }
+  y.resize(num_free_);
+  double xay = 0;
+#pragma omp parallel
+  {
+    const int t = omp_get_thread_num(), nt = omp_get_num_threads();
+#pragma omp single
+    thread_y_.resize(static_cast<size_t>(nt));
+    Eigen::VectorXd& mine = thread_y_[static_cast<size_t>(t)];
+    mine.setZero(num_free_);  // allocates once per thread and size
+    block_rows(start, col, val, x.data(), mine.data(), static_cast<int>(static_cast<long>(nb) * t / nt),
+               static_cast<int>(static_cast<long>(nb) * (t + 1) / nt));
+#pragma omp barrier
+    double part = 0;
+#pragma omp for schedule(static)
+    for (int r = 0; r < num_free_; ++r) {
+      double s = 0;
+      for (int u = 0; u < nt; ++u) s += thread_y_[static_cast<size_t>(u)][r];
+      y[r] = s;
+      part += s * x[r];
+    }
+#pragma omp atomic
+    xay += part;
+  }
+  return xay;
 }
 
 void SparseSystem::colour_chunks(int n) {

@@ -439,8 +439,15 @@ TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
   for (const auto& [name, nodes] : ordered.node_sets()) shuffled.set_node_set(name, nodes);
   for (const core::TetMesh* mesh : {&ordered, &shuffled})
     for (int chunk : {1, 5, 32, 100000})
-      for (bool with_fixed : {false, true}) {
-        const std::vector<std::uint8_t> fixed = with_fixed ? partly_fixed(*mesh) : std::vector<std::uint8_t>{};
+      for (int fixing : {0, 1, 2}) {  // none; the xmin face wholly (blocks kept); single components too
+        const bool with_fixed = fixing > 0;
+        std::vector<std::uint8_t> fixed;
+        if (fixing == 2) fixed = partly_fixed(*mesh);
+        if (fixing == 1) {
+          fixed.assign(static_cast<size_t>(3 * mesh->num_nodes()), 0);
+          for (int v : mesh->node_set("xmin"))
+            for (int c = 0; c < 3; ++c) fixed[static_cast<size_t>(3 * v + c)] = 1;
+        }
         Eigen::VectorXd f_ref;
         const Eigen::MatrixXd K_ref =
             restrict_dense(dense_assembly(*mesh, random_block, &f_ref), free_dofs(fixed, 3 * mesh->num_nodes()));
@@ -460,6 +467,24 @@ TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
         for (int pass = 0; pass < 2; ++pass) {
           Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
           sys.assemble_batched(kernel, f);
+          // With every node wholly free or fixed the values went to the upper block store:
+          // its products against the dense reference, then the CSR values synced from it.
+          EXPECT_EQ(sys.has_blocks(), fixing < 2) << "partly_fixed fixes single components";
+          if (sys.blocks_current()) {
+            const Eigen::VectorXd x = Eigen::VectorXd::LinSpaced(sys.num_free(), -1.0, 2.0);
+            for (bool parallel : {false, true}) {
+              Eigen::VectorXd y;
+              const double xax = sys.block_product(x, y, parallel);
+              EXPECT_LT((y - K_ref * x).norm(), 1e-13 * (K_ref * x).norm()) << "parallel " << parallel;
+              EXPECT_NEAR(xax, x.dot(K_ref * x), 1e-12 * std::abs(x.dot(K_ref * x)) + 1e-12);
+              Eigen::Matrix<double, Eigen::Dynamic, 8, Eigen::RowMajor> W(sys.num_free(), 8), AW(sys.num_free(), 8);
+              for (int c = 0; c < 8; ++c) W.col(c) = Eigen::VectorXd::LinSpaced(sys.num_free(), -1.0 - c, 1.0 + c * c);
+              sys.block_product8(W.data(), AW.data(), parallel);
+              EXPECT_LT((Eigen::MatrixXd(AW) - K_ref * Eigen::MatrixXd(W)).norm(), 1e-13 * (K_ref * Eigen::MatrixXd(W)).norm());
+            }
+            sys.sync_matrix();
+            EXPECT_FALSE(sys.blocks_current());
+          }
           const Eigen::MatrixXd K = sys.matrix();
           ASSERT_TRUE(K.allFinite()) << "chunk " << chunk << " fixed " << with_fixed << " pass " << pass;
           EXPECT_LT((K - K_ref).norm(), 1e-13 * K_ref.norm()) << "chunk " << chunk << " fixed " << with_fixed;
