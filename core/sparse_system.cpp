@@ -1,6 +1,7 @@
 #include "core/sparse_system.hpp"
 
 #include <algorithm>
+#include <array>
 #include <omp.h>
 #include <cstdint>
 #include <stdexcept>
@@ -266,117 +267,88 @@ void SparseSystem::sync_matrix() {
 }
 
 namespace {
-// Rows [begin, end) of the symmetric block product into y (which the caller zeroed);
-// returns the part of x . A x from the stored upper blocks' rows (each off-diagonal block
-// counted twice).
-void block_rows(const int* start, const int* col, const double* val, const double* x, double* y, int begin, int end) {
-  for (int I = begin; I < end; ++I) {
-    const double* xi = x + 3 * I;
-    const int k0 = start[I];
-    const double* d = val + 9 * static_cast<size_t>(k0);
-    double s0 = d[0] * xi[0] + d[1] * xi[1] + d[2] * xi[2];
-    double s1 = d[3] * xi[0] + d[4] * xi[1] + d[5] * xi[2];
-    double s2 = d[6] * xi[0] + d[7] * xi[1] + d[8] * xi[2];
-    for (int k = k0 + 1; k < start[I + 1]; ++k) {
-      const double* b = val + 9 * static_cast<size_t>(k);
-      const double* xj = x + 3 * col[k];
-      double* yj = y + 3 * col[k];
-      s0 += b[0] * xj[0] + b[1] * xj[1] + b[2] * xj[2];
-      s1 += b[3] * xj[0] + b[4] * xj[1] + b[5] * xj[2];
-      s2 += b[6] * xj[0] + b[7] * xj[1] + b[8] * xj[2];
-      yj[0] += b[0] * xi[0] + b[3] * xi[1] + b[6] * xi[2];
-      yj[1] += b[1] * xi[0] + b[4] * xi[1] + b[7] * xi[2];
-      yj[2] += b[2] * xi[0] + b[5] * xi[1] + b[8] * xi[2];
-    }
-    y[3 * I] += s0;
-    y[3 * I + 1] += s1;
-    y[3 * I + 2] += s2;
-  }
-}
-
-// As block_rows for eight right-hand sides at once (W and AW n x 8, row-major).
-void block_rows8(const int* start, const int* col, const double* val, const double* W, double* AW, int begin, int end) {
+// Block rows [begin, end) of the symmetric block product, K right-hand sides side by side
+// (x, y: 3K values per block row, row-major). Each stored block (I, J), J > I, adds B x_J
+// to row I and B^T x_I to row J: into y when J < end (rows this call owns, or earlier
+// ones), else into `spill` (rows of a later thread), widening [spill_lo, spill_hi).
+template <int K>
+void block_rows(const int* start, const int* col, const double* val, const double* x, double* y, double* spill,
+                int begin, int end, int& spill_lo, int& spill_hi) {
   using B3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
-  using R8 = Eigen::Matrix<double, 3, 8, Eigen::RowMajor>;
+  using R = Eigen::Matrix<double, 3, K, K == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
+  constexpr size_t S = 3 * K;
   for (int I = begin; I < end; ++I) {
-    const Eigen::Map<const R8> wi(W + 24 * static_cast<size_t>(I));
-    Eigen::Map<R8> ai(AW + 24 * static_cast<size_t>(I));
-    R8 acc = Eigen::Map<const B3>(val + 9 * static_cast<size_t>(start[I])) * wi;
+    const Eigen::Map<const R> xi(x + S * static_cast<size_t>(I));
+    R acc = Eigen::Map<const B3>(val + 9 * static_cast<size_t>(start[I])) * xi;
     for (int k = start[I] + 1; k < start[I + 1]; ++k) {
       const Eigen::Map<const B3> b(val + 9 * static_cast<size_t>(k));
-      const size_t J = static_cast<size_t>(col[k]);
-      acc.noalias() += b * Eigen::Map<const R8>(W + 24 * J);
-      Eigen::Map<R8>(AW + 24 * J).noalias() += b.transpose() * wi;
+      const int J = col[k];
+      acc.noalias() += b * Eigen::Map<const R>(x + S * static_cast<size_t>(J));
+      double* out = y;
+      if (J >= end) {
+        out = spill;
+        spill_lo = std::min(spill_lo, J);
+        spill_hi = std::max(spill_hi, J + 1);
+      }
+      Eigen::Map<R>(out + S * static_cast<size_t>(J)).noalias() += b.transpose() * xi;
     }
-    ai += acc;
+    Eigen::Map<R>(y + S * static_cast<size_t>(I)) += acc;
   }
 }
-}  // namespace
 
-void SparseSystem::block_product8(const double* W, double* AW, bool parallel) const {
-  const int nb = static_cast<int>(block_start_.size()) - 1;
-  const int* start = block_start_.data();
-  const int* col = block_col_.data();
-  const double* val = block_values_.data();
-  const size_t len = 8 * static_cast<size_t>(num_free_);
+// y = A x (K columns) over the block rows, on the OpenMP threads when `parallel`: thread t
+// owns block rows [nb t / nt, nb (t + 1) / nt) of y (zeroes them, writes them), and
+// contributions to later threads' rows go to its spill vector, added by their owners after
+// a barrier and zeroed again (so the spills stay zero between calls: no full-length pass).
+template <int K>
+void symmetric_block_product(const std::vector<int>& start_v, const std::vector<int>& col_v, const std::vector<double>& val_v,
+                             const double* x, double* y, bool parallel, std::vector<Eigen::VectorXd>& spills,
+                             std::vector<std::array<int, 2>>& ranges) {
+  const int nb = static_cast<int>(start_v.size()) - 1;
+  const size_t S = 3 * K;
+  const size_t len = S * static_cast<size_t>(nb);
   if (!parallel) {
-    std::fill(AW, AW + len, 0.0);
-    block_rows8(start, col, val, W, AW, 0, nb);
+    std::fill(y, y + len, 0.0);
+    int lo = nb, hi = 0;
+    block_rows<K>(start_v.data(), col_v.data(), val_v.data(), x, y, y, 0, nb, lo, hi);
     return;
   }
 #pragma omp parallel
   {
     const int t = omp_get_thread_num(), nt = omp_get_num_threads();
 #pragma omp single
-    thread_aw_.resize(static_cast<size_t>(nt));
-    Eigen::VectorXd& mine = thread_aw_[static_cast<size_t>(t)];
-    mine.setZero(static_cast<Eigen::Index>(len));
-    block_rows8(start, col, val, W, mine.data(), static_cast<int>(static_cast<long>(nb) * t / nt),
-                static_cast<int>(static_cast<long>(nb) * (t + 1) / nt));
+    {
+      if (spills.size() != static_cast<size_t>(nt)) spills.resize(static_cast<size_t>(nt));
+      ranges.resize(static_cast<size_t>(nt));
+      for (Eigen::VectorXd& v : spills)
+        if (static_cast<size_t>(v.size()) != len) v.setZero(static_cast<Eigen::Index>(len));
+    }
+    const int begin = static_cast<int>(static_cast<long>(nb) * t / nt), end = static_cast<int>(static_cast<long>(nb) * (t + 1) / nt);
+    std::fill(y + S * static_cast<size_t>(begin), y + S * static_cast<size_t>(end), 0.0);
+    int lo = nb, hi = 0;
+    block_rows<K>(start_v.data(), col_v.data(), val_v.data(), x, y, spills[static_cast<size_t>(t)].data(), begin, end, lo, hi);
+    ranges[static_cast<size_t>(t)] = {lo, hi};
 #pragma omp barrier
-#pragma omp for schedule(static)
-    for (long r = 0; r < static_cast<long>(len); ++r) {
-      double s = 0;
-      for (int u = 0; u < nt; ++u) s += thread_aw_[static_cast<size_t>(u)][r];
-      AW[r] = s;
+    for (int u = 0; u < t; ++u) {
+      const int from = std::max(ranges[static_cast<size_t>(u)][0], begin), to = std::min(ranges[static_cast<size_t>(u)][1], end);
+      double* sp = spills[static_cast<size_t>(u)].data();
+      for (size_t r = S * static_cast<size_t>(std::max(from, 0)); r < S * static_cast<size_t>(std::max(to, from)); ++r) {
+        y[r] += sp[r];
+        sp[r] = 0.0;
+      }
     }
   }
 }
+}  // namespace
+
+void SparseSystem::block_product8(const double* W, double* AW, bool parallel) const {
+  symmetric_block_product<8>(block_start_, block_col_, block_values_, W, AW, parallel, thread_aw_, spill_ranges_);
+}
 
 double SparseSystem::block_product(const Eigen::VectorXd& x, Eigen::VectorXd& y, bool parallel) const {
-  const int nb = static_cast<int>(block_start_.size()) - 1;
-  const int* start = block_start_.data();
-  const int* col = block_col_.data();
-  const double* val = block_values_.data();
-  if (!parallel) {
-    y.setZero(num_free_);
-    block_rows(start, col, val, x.data(), y.data(), 0, nb);
-    return x.dot(y);
-  }
   y.resize(num_free_);
-  double xay = 0;
-#pragma omp parallel
-  {
-    const int t = omp_get_thread_num(), nt = omp_get_num_threads();
-#pragma omp single
-    thread_y_.resize(static_cast<size_t>(nt));
-    Eigen::VectorXd& mine = thread_y_[static_cast<size_t>(t)];
-    mine.setZero(num_free_);  // allocates once per thread and size
-    block_rows(start, col, val, x.data(), mine.data(), static_cast<int>(static_cast<long>(nb) * t / nt),
-               static_cast<int>(static_cast<long>(nb) * (t + 1) / nt));
-#pragma omp barrier
-    double part = 0;
-#pragma omp for schedule(static)
-    for (int r = 0; r < num_free_; ++r) {
-      double s = 0;
-      for (int u = 0; u < nt; ++u) s += thread_y_[static_cast<size_t>(u)][r];
-      y[r] = s;
-      part += s * x[r];
-    }
-#pragma omp atomic
-    xay += part;
-  }
-  return xay;
+  symmetric_block_product<1>(block_start_, block_col_, block_values_, x.data(), y.data(), parallel, thread_y_, spill_ranges_);
+  return x.dot(y);
 }
 
 void SparseSystem::colour_chunks(int n) {

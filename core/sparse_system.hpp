@@ -8,6 +8,7 @@
 #include <Eigen/SparseCore>
 
 #include <algorithm>
+#include <array>
 #include <utility>
 #include <vector>
 
@@ -139,7 +140,8 @@ class SparseSystem {
   std::vector<int> element_blocks_;              // 10 per element: 2 * block + transposed, or -1
   std::vector<int> csr_from_block_;              // per CSR value: its index in block_values_
   std::vector<std::pair<int, int>> block_zero_ranges_;  // as zero_ranges_, in block_values_
-  mutable std::vector<Eigen::VectorXd> thread_y_, thread_aw_;  // per-thread products (no allocation after the first)
+  mutable std::vector<Eigen::VectorXd> thread_y_, thread_aw_;  // per-thread spills (zero between products)
+  mutable std::vector<std::array<int, 2>> spill_ranges_;        // per thread: block rows its spill touched
   SparseMatrix A_;
   std::vector<int> diag_;
   // Where each element's entries go. An element whose 12 DOFs are all free (nearly all)
