@@ -40,7 +40,8 @@ class SparseSystem {
   int num_free() const { return num_free_; }
   /// Free index of each DOF (3N), -1 for fixed ones.
   const std::vector<int>& free_index() const { return free_index_; }
-  /// The system matrix over free DOFs (full symmetric pattern, both triangles stored).
+  /// The system matrix over free DOFs (full symmetric pattern, both triangles stored). After
+  /// assemble_batched its values are stale while blocks_current(): sync_matrix() first.
   SparseMatrix& matrix() { return A_; }
   const SparseMatrix& matrix() const { return A_; }
   /// Position of each free DOF's diagonal entry in the matrix values.
