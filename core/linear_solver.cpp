@@ -568,6 +568,10 @@ class PcgSolver final : public LinearSolver {
     double* aw = AW_.data();
     G_.setZero(m, m);
     Wb_.setZero(m);
+    // A W from the upper blocks (one pass for all eight columns) when the solve reads them;
+    // otherwise each row of A W is summed from the CSR values in the pass below.
+    const bool from_blocks = use_blocks_ && stride == 8;
+    if (from_blocks) system_->block_product8(w, aw, A.nonZeros() > 20000);
     // Rows [begin, end) into G_ and Wb_ (through per-thread sums when threaded).
     auto accumulate = [&](int begin, int end, SmallMatrix& g, SmallVector& wb) {
       if (m == 8 && stride == 8) {  // the default: fixed sizes, vectorised (measured 3x fewer instructions)
@@ -576,8 +580,12 @@ class PcgSolver final : public LinearSolver {
         V8 wb8 = V8::Zero();
         for (int r = begin; r < end; ++r) {
           V8 acc = V8::Zero();
-          for (int p = outer[r]; p < outer[r + 1]; ++p) acc += val[p] * Eigen::Map<const V8>(w + inner[p] * 8);
-          Eigen::Map<V8>(aw + r * 8) = acc;
+          if (from_blocks) {
+            acc = Eigen::Map<const V8>(aw + r * 8);
+          } else {
+            for (int p = outer[r]; p < outer[r + 1]; ++p) acc += val[p] * Eigen::Map<const V8>(w + inner[p] * 8);
+            Eigen::Map<V8>(aw + r * 8) = acc;
+          }
           const Eigen::Map<const V8> wr(w + r * 8);
           wb8 += b[r] * wr;
           g8.noalias() += wr * acc.transpose();
@@ -589,12 +597,16 @@ class PcgSolver final : public LinearSolver {
       SmallVector acc(m);
       for (int r = begin; r < end; ++r) {
         acc.setZero();
-        for (int p = outer[r]; p < outer[r + 1]; ++p) {
-          const double v = val[p];
-          const double* wr = w + inner[p] * stride;
-          for (int k = 0; k < m; ++k) acc[k] += v * wr[k];
+        if (from_blocks) {
+          for (int k = 0; k < m; ++k) acc[k] = aw[r * stride + k];
+        } else {
+          for (int p = outer[r]; p < outer[r + 1]; ++p) {
+            const double v = val[p];
+            const double* wr = w + inner[p] * stride;
+            for (int k = 0; k < m; ++k) acc[k] += v * wr[k];
+          }
+          for (int k = 0; k < m; ++k) aw[r * stride + k] = acc[k];
         }
-        for (int k = 0; k < m; ++k) aw[r * stride + k] = acc[k];
         const double* wr = w + r * stride;
         for (int k = 0; k < m; ++k) {
           wb[k] += wr[k] * b[r];
@@ -602,40 +614,7 @@ class PcgSolver final : public LinearSolver {
         }
       }
     };
-    if (use_blocks_ && stride == 8) {
-      // A W from the upper blocks (one pass for all eight columns), then W^T (A W), W^T b.
-      const bool par = A.nonZeros() > 20000;
-      system_->block_product8(w, aw, par);
-      using V8 = Eigen::Matrix<double, 8, 1>;
-      using M8 = Eigen::Matrix<double, 8, 8>;
-      auto sum = [&](int begin, int end, M8& g8, V8& wb8) {
-        for (int r = begin; r < end; ++r) {
-          const Eigen::Map<const V8> wr(w + r * 8);
-          g8.noalias() += wr * Eigen::Map<const V8>(aw + r * 8).transpose();
-          wb8 += b[r] * wr;
-        }
-      };
-      M8 g8 = M8::Zero();
-      V8 wb8 = V8::Zero();
-      if (par) {
-#pragma omp parallel
-        {
-          M8 g = M8::Zero();
-          V8 wb = V8::Zero();
-          const int nt = omp_get_num_threads(), t = omp_get_thread_num();
-          sum(static_cast<int>(static_cast<long>(rows) * t / nt), static_cast<int>(static_cast<long>(rows) * (t + 1) / nt), g, wb);
-#pragma omp critical(fiberfem_recycled_projection)
-          {
-            g8 += g;
-            wb8 += wb;
-          }
-        }
-      } else {
-        sum(0, rows, g8, wb8);
-      }
-      G_ = g8.topLeftCorner(m, m);
-      Wb_ = wb8.head(m);
-    } else if (A.nonZeros() > 20000) {
+    if (A.nonZeros() > 20000) {
 #pragma omp parallel
       {
         SmallMatrix g = SmallMatrix::Zero(m, m);
