@@ -10,6 +10,7 @@
 #include <dlfcn.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -236,12 +237,14 @@ class CholeskyFactor {
   bool factorize(const SparseMatrix& A) {
     Acol_ = Eigen::Map<const Eigen::SparseMatrix<double, Eigen::ColMajor, int>>(
         A.rows(), A.cols(), A.nonZeros(), A.outerIndexPtr(), A.innerIndexPtr(), A.valuePtr());
-    if (!analysed_ || Acol_.rows() != rows_) {
-      llt_.analyzePattern(Acol_);
-      analysed_ = true;
-      rows_ = Acol_.rows();
-    }
-    llt_.factorize(Acol_);
+    within_engine_threads([&] {
+      if (!analysed_ || Acol_.rows() != rows_) {
+        llt_.analyzePattern(Acol_);
+        analysed_ = true;
+        rows_ = Acol_.rows();
+      }
+      llt_.factorize(Acol_);
+    });
     ok_ = llt_.info() == Eigen::Success;
 #ifdef FIBERFEM_HAVE_CHOLMOD
     if (ok_ && single_precision_) single_.build(llt_.factor());
@@ -277,6 +280,23 @@ class CholeskyFactor {
     if (auto f = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) f(1);
   }
 #endif
+  // CHOLMOD's own OpenMP loops (in the supernodal factorisation) ask for teams of
+  // CHOLMOD_OMP_NUM_THREADS threads, which Debian's build fixes at 4 whatever the machine.
+  // On two cores that oversubscribes them, and the engine's worker threads then wait in
+  // the kernel instead of spinning: the factorisation of the 5,760-tet benchmark beam took
+  // 20 ms instead of 5-6. A host teams region caps every parallel region inside it at the
+  // engine's thread count (its thread_limit). Not from inside a parallel region, where
+  // a teams construct may not nest (and CHOLMOD's regions are serialised anyway).
+  template <class F>
+  static void within_engine_threads(F&& f) {
+    if (omp_in_parallel()) {
+      f();
+      return;
+    }
+    const int limit = std::max(1, std::min(omp_get_max_threads(), omp_get_num_procs()));
+#pragma omp teams num_teams(1) thread_limit(limit)
+    f();
+  }
   Eigen::SparseMatrix<double, Eigen::ColMajor, int> Acol_;
   bool single_precision_ = false;
 #ifdef FIBERFEM_HAVE_CHOLMOD

@@ -12,7 +12,10 @@
 
 #include <Eigen/Dense>
 
+#include <omp.h>
+
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <random>
 
@@ -415,6 +418,37 @@ TEST(LinearSolver, DirectSolverIsExactAndReusesTheAnalysis) {
   EXPECT_TRUE(st.ok);
   EXPECT_LT(residual(A2, S.b, x), 1e-12);
   EXPECT_LT((x - dense_solve(A2, S.b)).norm(), 1e-10 * x.norm());
+}
+
+// Debian's CHOLMOD asks for OpenMP teams of 4 threads (CHOLMOD_OMP_NUM_THREADS) in its
+// factorisation; the factor caps them at the engine's thread count. Counted as the threads
+// of this process (Linux: /proc/self/task) before and after a factorisation, with the
+// engine's two-thread pool already started.
+TEST(LinearSolver, FactorisationStartsNoThreadsBeyondTheEngines) {
+  if (!core::direct_solver_uses_cholmod()) GTEST_SKIP() << "built without CHOLMOD";
+  const auto threads = [] {
+    int n = 0;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/task")) ++n;
+    return n;
+  };
+  omp_set_num_threads(2);
+  int team = 0;
+#pragma omp parallel
+  {
+#pragma omp atomic
+    ++team;
+  }
+  ASSERT_EQ(team, 2);
+  const int before = threads();
+  System S = make_system();
+  ASSERT_GT(S.sys.num_free(), 128);  // CHOLMOD's loops go parallel above 128 columns
+  core::SolverSettings s;
+  s.method = core::LinearSolverKind::direct;
+  auto solver = make(s, S.sys);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(S.sys.num_free());
+  ASSERT_TRUE(solver->solve(S.sys.matrix(), S.b, x).ok);
+  EXPECT_LT(residual(S.sys.matrix(), S.b, x), 1e-12);
+  EXPECT_EQ(threads(), before);
 }
 
 TEST(LinearSolver, IndefiniteMatrixIsAReportedFailureNotAnException) {
