@@ -96,6 +96,15 @@ struct LinearSolverState {
   std::vector<Factor> factors;       ///< In slot order.
 };
 
+/// The Cholesky factor a solver last used, for reports and tests.
+struct FactorInfo {
+  bool factored = false;   ///< A factorisation exists.
+  double nonzeros = 0;     ///< Entries of L.
+  double flops = 0;        ///< Floating-point operations of one factorisation (CHOLMOD's count; 0 if unknown).
+  std::string ordering;    ///< Fill-reducing ordering of the analysis: "amd", "metis", ...
+  int solve_threads = 1;   ///< Threads one application of the preconditioner's factor uses.
+};
+
 /// Solves A x = b for the engine's SPD matrices. The pattern is analysed once.
 class LinearSolver {
  public:
@@ -103,6 +112,8 @@ class LinearSolver {
   /// Solves with `x` as the initial guess (PCG) or ignoring it (direct).
   virtual SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
   virtual std::string name() const = 0;
+  /// The factor of the last solve (solvers without one: factored false).
+  virtual FactorInfo factor_info() const { return {}; }
   /// Node blocks of the free DOFs for block preconditioners: rows starts[k] .. starts[k+1]-1
   /// belong to one node. Ignored by solvers that need none.
   virtual void set_blocks(std::vector<int> /*starts*/) {}

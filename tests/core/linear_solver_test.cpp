@@ -255,6 +255,54 @@ TEST(LinearSolver, SinglePrecisionPreconditionerIsAccurateToFloatRoundOff) {
   }
 }
 
+// A block (a 9x9x9-cell cube clamped on one face) orders by nested dissection, and its
+// elimination tree splits in two: one application of the single-precision factor then
+// runs on two threads, each through its own subtrees, with the separators above them on
+// one. Same contract as the serial substitution: with a fresh factor PCG reaches 1e-12 in
+// two iterations, and the solution is CHOLMOD's double-precision direct solve; on one
+// thread (the serial substitution) the iterations and the solution are the same.
+TEST(LinearSolver, SplitTreeSubstitutionOnTwoThreadsMatchesTheDirectSolve) {
+  if (!core::has_cholmod()) GTEST_SKIP() << "the single-precision copy needs CHOLMOD's supernodal factor";
+  core::BoxSpec spec;
+  spec.size_m = Vec3(0.03, 0.03, 0.03);
+  spec.cells = {9, 9, 9};
+  const core::TetMesh mesh = core::make_box(spec);
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(3 * mesh.num_nodes()), 0);
+  for (int n : mesh.node_set("xmin"))
+    for (int c = 0; c < 3; ++c) fixed[static_cast<size_t>(3 * n + c)] = 1;
+  core::SparseSystem sys(mesh, fixed);
+  const core::SparseMatrix A = assemble(sys, mesh, 1.0);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> normal(0, 1);
+  Eigen::VectorXd b(sys.num_free());
+  for (Eigen::Index i = 0; i < b.size(); ++i) b(i) = normal(rng);
+
+  core::SolverSettings direct;
+  direct.method = core::LinearSolverKind::direct;
+  auto reference = make(direct, sys);
+  Eigen::VectorXd x_ref;
+  ASSERT_TRUE(reference->solve(A, b, x_ref).ok);
+  EXPECT_EQ(reference->factor_info().ordering, "metis");
+
+  const int threads_before = omp_get_max_threads();
+  for (int threads : {2, 1}) {
+    omp_set_num_threads(threads);
+    core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-12);
+    s.recycled_solutions = 0;
+    auto solver = make(s, sys);
+    Eigen::VectorXd x;
+    const core::SolveStats st = solver->solve(A, b, x);
+    const core::FactorInfo info = solver->factor_info();
+    EXPECT_TRUE(info.factored);
+    EXPECT_EQ(info.solve_threads, threads);
+    EXPECT_TRUE(st.ok);
+    EXPECT_EQ(st.iterations, 2) << threads << " thread(s)";
+    EXPECT_LE(residual(A, b, x), 1e-12);
+    EXPECT_LE((x - x_ref).norm(), 1e-10 * x_ref.norm()) << threads << " thread(s)";
+  }
+  omp_set_num_threads(threads_before);
+}
+
 // W A0 W^T with W = blockdiag(Q_k), one rotation per node: the warped preconditioner
 // W A0^-1 W^T is its exact inverse, so PCG converges at once without refactorising.
 TEST(LinearSolver, WarpedCholeskyIsExactForRotatedMatrices) {
