@@ -40,6 +40,8 @@ bool has_cholmod() {
 void SolverSettings::validate() const {
   if (refresh_iterations < 1)
     throw std::invalid_argument("solver: refresh_iterations must be >= 1, got " + std::to_string(refresh_iterations));
+  if (!(refresh_budget >= 0 && std::isfinite(refresh_budget)))
+    throw std::invalid_argument("solver: refresh_budget must be finite and >= 0, got " + std::to_string(refresh_budget));
   if (!(tolerance > 0 && tolerance < 1))
     throw std::invalid_argument("solver: tolerance must be in (0, 1), got " + std::to_string(tolerance));
   if (max_iterations < 1)
@@ -436,6 +438,12 @@ class CholeskyFactor {
     return ok_;
   }
   bool ok() const { return ok_; }
+  /// What a factorisation costs in applications of the factor: its flops over 4 nnz(L)
+  /// (one forward and one backward substitution, a multiply and an add per entry).
+  double iterations_per_factorisation() const {
+    const FactorInfo i = info();
+    return i.nonzeros > 0 ? i.flops / (4 * i.nonzeros) : 0;
+  }
   FactorInfo info() const {
     FactorInfo i;
     i.factored = ok_;
@@ -448,7 +456,12 @@ class CholeskyFactor {
     i.ordering = ordering == CHOLMOD_AMD ? "amd" : ordering == CHOLMOD_METIS ? "metis" : ordering == CHOLMOD_NESDIS ? "nesdis" : "other";
     i.solve_threads = single_precision_ && single_.ok() && single_.parallel() && omp_get_max_threads() >= 2 ? 2 : 1;
 #else
-    i.nonzeros = static_cast<double>(llt_.matrixL().nestedExpression().nonZeros());
+    const auto& L = llt_.matrixL().nestedExpression();
+    i.nonzeros = static_cast<double>(L.nonZeros());
+    for (Eigen::Index j = 0; j < L.outerSize(); ++j) {  // sum of squared column counts
+      const double c = static_cast<double>(L.outerIndexPtr()[j + 1] - L.outerIndexPtr()[j]);
+      i.flops += c * c;
+    }
     i.ordering = "amd";
 #endif
     return i;
@@ -520,6 +533,8 @@ struct FactorSlot {
   std::vector<Mat3> at_factor;
   Eigen::Index rows = -1;
   bool stale = true;       // refactorise before the next use
+  int baseline = -1;       // iterations of the first solve with this factor (-1: none yet)
+  double excess = 0;       // iterations beyond the baseline summed over the later solves
   double key = 0;          // which matrix family (the step size h that built it)
   long last_used = 0;
 };
@@ -887,11 +902,28 @@ class PcgSolver final : public LinearSolver {
       const int first = cg.iterations;
       x = x0;
       cg = run(warp_pre_, A, b, x, Ax0);
+      note_iterations(slot, cg.iterations);
       cg.iterations += first;
+    } else {
+      note_iterations(slot, cg.iterations);
     }
     cg.factorizations = st.factorizations;
-    slot.stale = cg.iterations > s_.refresh_iterations;
+    slot.stale = slot.stale || cg.iterations > s_.refresh_iterations;
     return cg;
+  }
+  // The refresh rule that minimises the time of a run when a factor's iterations grow as
+  // it ages: refactorise once the iterations it has cost beyond its first solve add up to
+  // what a factorisation costs, counted in iterations (its flops over those of one
+  // application of the factor, 4 nnz(L)), times refresh_budget. Deterministic: counts,
+  // not timings, so a run and its restore from a checkpoint refresh at the same steps.
+  void note_iterations(FactorSlot& slot, int iterations) {
+    if (slot.baseline < 0) {
+      slot.baseline = iterations;
+      return;
+    }
+    slot.excess += std::max(0, iterations - slot.baseline);
+    if (s_.refresh_budget > 0 && slot.excess > s_.refresh_budget * slot.factor.iterations_per_factorisation())
+      slot.stale = true;
   }
 
   // Factors are kept per matrix family (the step size): a step retried with substeps, and
@@ -956,6 +988,8 @@ class PcgSolver final : public LinearSolver {
       f.at_factor = sl->at_factor;
       f.rows = sl->rows;
       f.stale = sl->stale;
+      f.baseline = sl->baseline;
+      f.excess = sl->excess;
       f.key = sl->key;
       f.last_used = sl->last_used;
       st.factors.push_back(std::move(f));
@@ -993,6 +1027,8 @@ class PcgSolver final : public LinearSolver {
       sl->at_factor = f.at_factor;
       sl->rows = f.rows;
       sl->stale = f.stale;
+      sl->baseline = f.baseline;
+      sl->excess = f.excess;
       sl->key = f.key;
       sl->last_used = f.last_used;
       slots_.push_back(std::move(sl));
@@ -1015,6 +1051,8 @@ class PcgSolver final : public LinearSolver {
     slot.at_factor = warp_.current;
     slot.rows = A.rows();
     slot.stale = false;
+    slot.baseline = -1;
+    slot.excess = 0;
     ++st.factorizations;
   }
   static SolveStats failed(SolveStats st) {

@@ -177,15 +177,17 @@ constexpr double kMaxStableFiberRatio = 1000.0;
 // The fidelity presets (scene key `fidelity`, docs/scenes.md), chosen from the measured
 // Pareto fronts of docs/speed-accuracy.md. Explicit keys of the scene override them.
 struct Fidelity {
-  double dt_s;          // solver.dt
-  double refine;        // mesh.refine: factor on a generator's resolution
-  double tolerance;     // solver.tolerance
+  double dt_s;             // solver.dt
+  double refine;           // mesh.refine: factor on a generator's resolution
+  double tolerance;        // solver.tolerance
+  int refresh_iterations;  // SolverSettings::refresh_iterations (no scene key)
+  double refresh_budget;   // SolverSettings::refresh_budget (no scene key)
 };
 const std::map<std::string, Fidelity>& fidelity_presets() {
   static const std::map<std::string, Fidelity> p{
-      {"interactive", {1.0 / 30.0, 0.5, 1e-3}},
-      {"balanced", {1.0 / 60.0, 1.0, 1e-6}},
-      {"accurate", {1.0 / 120.0, 1.5, 1e-6}},
+      {"interactive", {1.0 / 30.0, 0.5, 1e-3, 32, 1.0}},
+      {"balanced", {1.0 / 60.0, 1.0, 1e-6, 8, 0.0}},
+      {"accurate", {1.0 / 120.0, 1.5, 1e-6, 8, 0.0}},
   };
   return p;
 }
@@ -792,7 +794,12 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
 
   // Solver.
   core::SimulatorSettings st;
-  if (fidelity) st.dt_s = fidelity->dt_s, st.solver.tolerance = fidelity->tolerance;
+  if (fidelity) {
+    st.dt_s = fidelity->dt_s;
+    st.solver.tolerance = fidelity->tolerance;
+    st.solver.refresh_iterations = fidelity->refresh_iterations;
+    st.solver.refresh_budget = fidelity->refresh_budget;
+  }
   Mode mode = Mode::dynamic;
   double until_s = 2.0;
   if (top.has("solver")) {

@@ -182,6 +182,7 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
                            {"tolerance", s.solver.tolerance},
                            {"max_iterations", s.solver.max_iterations},
                            {"refresh_iterations", s.solver.refresh_iterations},
+                           {"refresh_budget", s.solver.refresh_budget},
                            {"recycled_solutions", s.solver.recycled_solutions},
                            {"warm_start", s.solver.warm_start},
                            {"rotation", s.rotation == core::RotationMethod::polar ? "polar" : "svd"},
@@ -436,7 +437,8 @@ void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& pa
     const auto& f = c.solver.factors[k];
     b.add("solver.factor" + std::to_string(k) + ".matrix_values", f.matrix_values.data(), static_cast<size_t>(f.matrix_values.size()));
     add_matrices(b, "solver.factor" + std::to_string(k) + ".at_factor", f.at_factor);
-    factors.push_back({{"factored", f.factored}, {"rows", f.rows}, {"stale", f.stale}, {"key", f.key}, {"last_used", f.last_used}});
+    factors.push_back({{"factored", f.factored}, {"rows", f.rows}, {"stale", f.stale}, {"baseline", f.baseline},
+                       {"excess", f.excess}, {"key", f.key}, {"last_used", f.last_used}});
   }
   const json header = {
       {"time_s", c.time_s},
@@ -814,6 +816,8 @@ core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>
     F.factored = f.at("factored");
     F.rows = f.at("rows");
     F.stale = f.at("stale");
+    F.baseline = f.value("baseline", -1);  // absent in checkpoints written before 2026-11-25
+    F.excess = f.value("excess", 0.0);
     F.key = f.at("key");
     F.last_used = f.at("last_used");
     F.matrix_values = vector_of(section(h, data, "solver.factor" + std::to_string(i) + ".matrix_values"));

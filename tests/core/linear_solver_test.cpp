@@ -232,6 +232,57 @@ TEST(LinearSolver, CholeskyPcgRefreshesAStaleFactor) {
   }
 }
 
+// refresh_budget: the factor is refreshed once the iterations it has cost beyond its first
+// solve add up to budget x (flops of a factorisation / 4 nnz(L)), both read off
+// factor_info(); with budget 0 only refresh_iterations refreshes (here never: it is
+// set out of reach). The extra iterations come from solving with A3 on A1's factor.
+TEST(LinearSolver, CholeskyPcgRefreshesWhenExtraIterationsCostAFactorisation) {
+  System S = make_system();
+  const core::SparseMatrix A1 = S.sys.matrix();
+  const core::SparseMatrix A3 = assemble(S.sys, S.mesh, 3.0);
+  for (double budget : {3.0, 0.0}) {
+    core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-9);
+    s.refresh_iterations = 1000;
+    s.refresh_budget = budget;
+    s.recycled_solutions = 0;
+    auto solver = make(s, S.sys);
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(S.sys.num_free());
+    core::SolveStats st = solver->solve(A1, S.b, x);
+    ASSERT_EQ(st.factorizations, 1);
+    const int baseline = st.iterations;
+    const core::FactorInfo info = solver->factor_info();
+    ASSERT_TRUE(info.factored);
+    ASSERT_GT(info.flops, 0);
+    const double allowed = budget * info.flops / (4 * info.nonzeros);
+    double excess = 0;
+    int refreshed_at = -1;
+    for (int k = 0; k < 200 && refreshed_at < 0; ++k) {
+      x.setZero();
+      st = solver->solve(A3, S.b, x);
+      ASSERT_TRUE(st.ok);
+      EXPECT_LE(residual(A3, S.b, x), 2e-9);
+      if (st.factorizations > 0) {
+        ADD_FAILURE() << "refreshed at solve " << k << " with an excess of " << excess << ", budget " << allowed;
+        refreshed_at = k;
+        break;
+      }
+      ASSERT_GT(st.iterations, baseline) << "the test needs A3 far enough from A1";
+      excess += st.iterations - baseline;
+      // Stale exactly when the excess passed the budget: the next solve refactorises.
+      if (budget > 0 && excess > allowed) {
+        x.setZero();
+        EXPECT_EQ(solver->solve(A3, S.b, x).factorizations, 1) << "after " << k + 1 << " solves, excess " << excess;
+        refreshed_at = k + 1;
+      }
+    }
+    if (budget > 0) {
+      EXPECT_GE(refreshed_at, 2) << "the budget should take a few solves to use up: " << allowed;
+    } else {
+      EXPECT_EQ(refreshed_at, -1) << "budget 0 refreshed";
+    }
+  }
+}
+
 // The single-precision copy of the factor: with a fresh factor each PCG iteration cuts the
 // residual by about float round-off (1e-7 relative), so 1e-12 takes two iterations where
 // the double factor takes one; the solution is the same to the tolerance.
@@ -551,6 +602,8 @@ TEST(SolverSettings, ValidateNamesTheField) {
       {with([&](auto& s) { s.tolerance = nan; }), "tolerance"},
       {with([](auto& s) { s.max_iterations = 0; }), "max_iterations"},
       {with([](auto& s) { s.refresh_iterations = 0; }), "refresh_iterations"},
+      {with([](auto& s) { s.refresh_budget = -1; }), "refresh_budget"},
+      {with([](auto& s) { s.refresh_budget = std::numeric_limits<double>::infinity(); }), "refresh_budget"},
       {with([](auto& s) { s.failure_residual = 0; }), "failure_residual"},
       {with([&](auto& s) { s.failure_residual = inf; }), "failure_residual"},
       {with([&](auto& s) { s.failure_residual = nan; }), "failure_residual"},

@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 namespace fiberfem {
 namespace {
 
@@ -32,8 +34,12 @@ void run(core::Simulator& sim, int steps, Trace& t) {
   }
 }
 
-void expect_resume_is_exact(const std::string& scene_file, int before, int after) {
-  const io::Scene scene = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/" + scene_file);
+// `tweak` changes the scene's engine settings before both runs; `refreshes` asks that the
+// continuation refactorise at least once (the restored refresh count then matters).
+void expect_resume_is_exact(const std::string& scene_file, int before, int after,
+                            const std::function<void(core::SimulatorSettings&)>& tweak = {}, bool refreshes = false) {
+  io::Scene scene = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/" + scene_file);
+  if (tweak) tweak(scene.settings);
   ASSERT_EQ(scene.settings.solver.method, core::LinearSolverKind::pcg);
   ASSERT_EQ(scene.settings.solver.preconditioner, core::PreconditionerKind::cholesky);
   core::Simulator whole(scene.model, scene.settings);
@@ -43,6 +49,11 @@ void expect_resume_is_exact(const std::string& scene_file, int before, int after
   EXPECT_EQ(c.step_count, before);
   EXPECT_FALSE(c.solver.factors.empty()) << "the checkpoint should carry a lagged factor";
   run(whole, after, tail);
+  if (refreshes) {
+    int n = 0;
+    for (int f : tail.factorizations) n += f;
+    EXPECT_GT(n, 0) << "no refactorisation after the checkpoint: the test would not see the refresh state";
+  }
 
   core::Simulator resumed(scene.model, scene.settings);  // fresh: no history, no factor
   resumed.restore(c);
@@ -77,6 +88,19 @@ void expect_resume_is_exact(const std::string& scene_file, int before, int after
 }
 
 TEST(SimulatorCheckpoint, ContractingHeartResumesBitForBit) { expect_resume_is_exact("heart.yaml", 17, 15); }
+
+// With the budget refresh rule (the interactive preset's, a smaller budget so that the
+// window sees refreshes): the factor's baseline and excess iterations are part of the
+// checkpoint, so the resumed run refactorises at the same steps.
+TEST(SimulatorCheckpoint, BudgetRefreshResumesBitForBit) {
+  expect_resume_is_exact(
+      "heart.yaml", 17, 15,
+      [](core::SimulatorSettings& s) {
+        s.solver.refresh_iterations = 32;
+        s.solver.refresh_budget = 0.05;
+      },
+      true);
+}
 
 TEST(SimulatorCheckpoint, PalmUnderDragResumesBitForBit) { expect_resume_is_exact("palm-drag.yaml", 23, 20); }
 

@@ -56,19 +56,26 @@ TEST(SceneFidelity, NoPresetKeepsTheEngineDefaults) {
   EXPECT_TRUE(s.warnings.empty());
 }
 
-TEST(SceneFidelity, EachPresetSetsStepRefinementAndTolerance) {
+TEST(SceneFidelity, EachPresetSetsStepRefinementToleranceAndRefresh) {
   struct Expect {
     const char* name;
     double dt, tol;
     int cells[3];
+    int refresh_iterations;
+    double refresh_budget;
   };
   // Box cells [20, 2, 2] times the refinement (0.5, 1, 1.5), rounded, at least 1.
-  for (const Expect& e : {Expect{"interactive", 1.0 / 30, 1e-3, {10, 1, 1}}, Expect{"balanced", 1.0 / 60, 1e-6, {20, 2, 2}},
-                          Expect{"accurate", 1.0 / 120, 1e-6, {30, 3, 3}}}) {
+  // interactive also refreshes its factor by the budget rule (SolverSettings::refresh_budget).
+  const fiberfem::core::SolverSettings defaults;
+  for (const Expect& e : {Expect{"interactive", 1.0 / 30, 1e-3, {10, 1, 1}, 32, 1.0},
+                          Expect{"balanced", 1.0 / 60, 1e-6, {20, 2, 2}, defaults.refresh_iterations, defaults.refresh_budget},
+                          Expect{"accurate", 1.0 / 120, 1e-6, {30, 3, 3}, defaults.refresh_iterations, defaults.refresh_budget}}) {
     const io::Scene s = io::parse_scene(kBox + "fidelity: " + e.name + "\n", "test.yaml");
     EXPECT_DOUBLE_EQ(s.settings.dt_s, e.dt) << e.name;
     EXPECT_DOUBLE_EQ(s.settings.solver.tolerance, e.tol) << e.name;
     EXPECT_EQ(s.model.mesh.num_elements(), e.cells[0] * e.cells[1] * e.cells[2] * 6) << e.name;
+    EXPECT_EQ(s.settings.solver.refresh_iterations, e.refresh_iterations) << e.name;
+    EXPECT_DOUBLE_EQ(s.settings.solver.refresh_budget, e.refresh_budget) << e.name;
     // Everything else stays the engine's default.
     EXPECT_EQ(s.settings.solver.method, fiberfem::core::LinearSolverKind::pcg) << e.name;
     EXPECT_EQ(s.settings.rotation, fiberfem::core::RotationMethod::polar) << e.name;
