@@ -425,9 +425,10 @@ int main(int argc, char** argv) {
          "per-element (rotations + assembly) and per-iteration ratios are the like-for-like ones:\n\n"
       << ratios.str();
   if (!interactive.str().empty())
-    doc << "\nThe `interactive` preset's step and tolerance (dt 1/30 s, PCG 1e-3; issue 6's target: 1,000 "
-           "steps/s at the paper's size), same beams, warm-ups and step counts, the energy check on (the "
-           "default) on the paper-size beam and off on all three:\n\n"
+    doc << "\nThe `interactive` preset's step, tolerance and factor refresh (dt 1/30 s, PCG 1e-3, "
+           "refresh_budget 1, refresh_iterations 32; issue 6's target: 1,000 steps/s at the paper's size), same "
+           "beams, warm-ups and step counts, the energy check on (the default) on the paper-size beam and off on "
+           "all three:\n\n"
         << interactive.str();
   std::cout << "\n" << ratios.str();
   if (!out.empty()) {
