@@ -37,6 +37,12 @@ bool has_cholmod() {
 #endif
 }
 
+SolverSettings with_cost_refresh(SolverSettings s) {
+  s.refresh_iterations = 32;
+  s.refresh_budget = 1.0;
+  return s;
+}
+
 void SolverSettings::validate() const {
   if (refresh_iterations < 1)
     throw std::invalid_argument("solver: refresh_iterations must be >= 1, got " + std::to_string(refresh_iterations));
@@ -435,15 +441,15 @@ class CholeskyFactor {
 #ifdef FIBERFEM_HAVE_CHOLMOD
     if (ok_ && single_precision_) single_.build(llt_.factor());
 #endif
+    const FactorInfo i = info();
+    cost_in_applications_ = i.nonzeros > 0 ? i.flops / (4 * i.nonzeros) : 0;
     return ok_;
   }
   bool ok() const { return ok_; }
   /// What a factorisation costs in applications of the factor: its flops over 4 nnz(L)
-  /// (one forward and one backward substitution, a multiply and an add per entry).
-  double iterations_per_factorisation() const {
-    const FactorInfo i = info();
-    return i.nonzeros > 0 ? i.flops / (4 * i.nonzeros) : 0;
-  }
+  /// (one forward and one backward substitution, a multiply and an add per entry); set by
+  /// factorize().
+  double iterations_per_factorisation() const { return cost_in_applications_; }
   FactorInfo info() const {
     FactorInfo i;
     i.factored = ok_;
@@ -520,6 +526,7 @@ class CholeskyFactor {
   Eigen::SimplicialLLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>, Eigen::Lower> llt_;
 #endif
   bool analysed_ = false;
+  double cost_in_applications_ = 0;
   bool ok_ = false;
   Eigen::Index rows_ = -1;
 };
@@ -894,19 +901,18 @@ class PcgSolver final : public LinearSolver {
     first_guess_ = x;
     const Eigen::VectorXd& x0 = first_guess_;
     SolveStats cg = run(warp_pre_, A, b, x, Ax0);
+    int first = 0;  // iterations of a first attempt with the old factor
     if (!cg.ok && st.factorizations == 0) {
       // The old factor was too far from this matrix: refresh it and solve again.
       refactor(A, slot, st);
       if (!slot.factor.ok()) return failed(st);
       warp_.update_warp();
-      const int first = cg.iterations;
+      first = cg.iterations;
       x = x0;
       cg = run(warp_pre_, A, b, x, Ax0);
-      note_iterations(slot, cg.iterations);
-      cg.iterations += first;
-    } else {
-      note_iterations(slot, cg.iterations);
     }
+    note_iterations(slot, cg.iterations);  // with the factor now in the slot
+    cg.iterations += first;
     cg.factorizations = st.factorizations;
     slot.stale = slot.stale || cg.iterations > s_.refresh_iterations;
     return cg;

@@ -67,6 +67,10 @@ struct SolverSettings {
   void validate() const;
 };
 
+/// `s` with the factor refreshed by cost (the `interactive` fidelity preset's rule):
+/// refresh_budget 1, refresh_iterations 32 only as a bound.
+SolverSettings with_cost_refresh(SolverSettings s);
+
 /// Whether the engine was built with CHOLMOD (the supernodal factor, its single-precision
 /// copy, UMFPACK for the static solver); without it Eigen's simplicial solvers stand in.
 bool has_cholmod();

@@ -180,14 +180,13 @@ struct Fidelity {
   double dt_s;             // solver.dt
   double refine;           // mesh.refine: factor on a generator's resolution
   double tolerance;        // solver.tolerance
-  int refresh_iterations;  // SolverSettings::refresh_iterations (no scene key)
-  double refresh_budget;   // SolverSettings::refresh_budget (no scene key)
+  bool cost_refresh;       // core::with_cost_refresh (no scene key)
 };
 const std::map<std::string, Fidelity>& fidelity_presets() {
   static const std::map<std::string, Fidelity> p{
-      {"interactive", {1.0 / 30.0, 0.5, 1e-3, 32, 1.0}},
-      {"balanced", {1.0 / 60.0, 1.0, 1e-6, 8, 0.0}},
-      {"accurate", {1.0 / 120.0, 1.5, 1e-6, 8, 0.0}},
+      {"interactive", {1.0 / 30.0, 0.5, 1e-3, true}},
+      {"balanced", {1.0 / 60.0, 1.0, 1e-6, false}},
+      {"accurate", {1.0 / 120.0, 1.5, 1e-6, false}},
   };
   return p;
 }
@@ -797,8 +796,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   if (fidelity) {
     st.dt_s = fidelity->dt_s;
     st.solver.tolerance = fidelity->tolerance;
-    st.solver.refresh_iterations = fidelity->refresh_iterations;
-    st.solver.refresh_budget = fidelity->refresh_budget;
+    if (fidelity->cost_refresh) st.solver = core::with_cost_refresh(st.solver);
   }
   Mode mode = Mode::dynamic;
   double until_s = 2.0;

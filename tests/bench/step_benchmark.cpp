@@ -392,8 +392,9 @@ int main(int argc, char** argv) {
     const int saved_refresh = g_refresh;
     const double saved_budget = g_refresh_budget;
     g_dt = 1.0 / 30.0;
-    g_refresh = 32;  // the preset's refresh rule (io/scene.cpp fidelity_presets)
-    g_refresh_budget = 1.0;
+    const core::SolverSettings preset = core::with_cost_refresh({});  // the preset's refresh rule
+    g_refresh = preset.refresh_iterations;
+    g_refresh_budget = preset.refresh_budget;
     for (const Size& size : sizes)
       for (int k : {0, 6}) {
         if (k == 0 && size.name != "small") continue;

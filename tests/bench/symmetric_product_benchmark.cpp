@@ -162,26 +162,22 @@ int main(int argc, char** argv) {
   std::printf("beam of %d tets: %d free DOFs, %ld stored entries (both triangles), %zu upper entries, %zu upper node blocks\n",
               model.mesh.num_elements(), n, static_cast<long>(A.nonZeros()), ui.size(), bi.size());
   std::printf("| product | threads | median us | relative difference from csr |\n|---|---:|---:|---:|\n");
-  auto row = [&](const char* name, int threads, double us) {
+  // One table row: the median time of `product` and its result's difference from csr's.
+  auto row = [&](const char* name, int threads, auto&& product) {
+    const double us = median_us(repeat, product);
     std::printf("| %s | %d | %.1f | %.1e |\n", name, threads, us, (y - y_ref).norm() / y_ref.norm());
   };
-  double t = median_us(repeat, [&] { csr(y, 1); });
-  row("csr", 1, t);
-  t = median_us(repeat, [&] { csr(y, 2); });
-  row("csr", 2, t);
-  t = median_us(repeat, [&] {
+  row("csr", 1, [&] { csr(y, 1); });
+  row("csr", 2, [&] { csr(y, 2); });
+  row("csr-upper", 1, [&] {
     y.setZero();
     csr_upper_rows(y, 0, n);
   });
-  row("csr-upper", 1, t);
-  t = median_us(repeat, [&] { two_threads(csr_upper_rows, n, 1); });
-  row("csr-upper", 2, t);
-  t = median_us(repeat, [&] {
+  row("csr-upper", 2, [&] { two_threads(csr_upper_rows, n, 1); });
+  row("bsr-upper", 1, [&] {
     y.setZero();
     bsr_upper_rows(y, 0, nb);
   });
-  row("bsr-upper", 1, t);
-  t = median_us(repeat, [&] { two_threads(bsr_upper_rows, nb, 3); });
-  row("bsr-upper", 2, t);
+  row("bsr-upper", 2, [&] { two_threads(bsr_upper_rows, nb, 3); });
   return 0;
 }
