@@ -30,11 +30,33 @@ struct ElementBatch {
   static constexpr int block_index(int a, int b) { return a * 4 - a * (a - 1) / 2 + (b - a); }
 };
 
+/// How the element loop is laid out on the threads (SparseSystem::for_each_element_coloured).
+enum class LoopSchedule {
+  /// `runs` when the mesh has at least kRunMinElements elements per run and its runs colour
+  /// in at most three colours, else `chunks`.
+  automatic,
+  /// Chunks of `chunk_size` neighbouring elements, coloured, each chunk its own task
+  /// (balanced, but a colour's chunks are spread over the whole body: on a mesh whose
+  /// matrix outgrows the caches every colour streams it from memory again).
+  chunks,
+  /// 4 x threads runs of consecutive chunks, coloured as wholes (two colours on a mesh
+  /// in a local order), each run one task walked in order by one thread: a node's blocks
+  /// are written by the elements around it close together in time.
+  runs,
+};
+
 class SparseSystem {
  public:
+  /// Fewest elements per run for LoopSchedule::automatic to choose runs: below it the
+  /// matrix stays in cache and chunks balance better (measured: docs/performance.md).
+  static constexpr int kRunMinElements = 4096;
+
   /// @param fixed_dofs per-DOF fixed flags (3N) or empty; fixed DOFs are left out.
+  /// @param chunk_size elements per chunk of the coloured loop (at least 1).
+  /// @param schedule the loop's layout on the threads (runs are sized for the OpenMP
+  ///        thread count at construction).
   SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>& fixed_dofs,
-               int chunk_size = 32);
+               int chunk_size = 32, LoopSchedule schedule = LoopSchedule::automatic);
 
   int num_dofs() const { return num_dofs_; }
   int num_free() const { return num_free_; }
@@ -51,6 +73,8 @@ class SparseSystem {
   std::vector<int> node_block_starts() const;
   /// Number of colours of the parallel assembly.
   int num_colours() const { return static_cast<int>(colour_chunks_.size()); }
+  /// Whether the loop runs in long runs of chunks (LoopSchedule::runs) rather than chunks.
+  bool runs_in_runs() const { return run_chunks_ > 1; }
 
   /// Zeros the matrix values (pattern kept).
   void zero_matrix();
@@ -125,7 +149,9 @@ class SparseSystem {
   std::vector<int> free_index_;
   std::vector<Tet> tets_;
   std::vector<int> order_;  // elements in chunk order (the mesh's, or Morton order of centroids)
-  void colour_chunks(int num_nodes);
+  /// Greedy colouring of units of `run_chunks` consecutive chunks (a unit is one task);
+  /// fills colour_chunks_ and colour_tasks_.
+  void colour_chunks(int num_nodes, int run_chunks = 1);
   void plan_zeroing(int num_nodes);
   // Value ranges [first, second) that chunk c zeroes before its elements:
   // zero_ranges_[zero_begin_[c] .. zero_begin_[c + 1]).
@@ -155,19 +181,25 @@ class SparseSystem {
   std::vector<int> general_offset_;    // per element: offset into general_scatter_, or -1
   std::vector<int> general_scatter_;   // 144 per element with a fixed DOF
   int chunk_size_ = 32;
-  std::vector<std::vector<int>> colour_chunks_;  // chunk ids per colour
+  std::vector<std::vector<int>> colour_chunks_;  // chunk ids per colour, task by task
+  // Per colour: task t walks colour_chunks_[c][colour_tasks_[c][t] .. colour_tasks_[c][t + 1]).
+  std::vector<std::vector<int>> colour_tasks_;
+  int run_chunks_ = 1;  // chunks per task (1: LoopSchedule::chunks)
 };
 
 template <class ChunkKernel>
 void SparseSystem::for_each_chunk_coloured(ChunkKernel&& kernel) const {
   const int ne = static_cast<int>(tets_.size());
-  for (const std::vector<int>& chunks : colour_chunks_) {
-    const int nc = static_cast<int>(chunks.size());
+  for (size_t c = 0; c < colour_chunks_.size(); ++c) {
+    const std::vector<int>& chunks = colour_chunks_[c];
+    const std::vector<int>& tasks = colour_tasks_[c];
+    const int nt = static_cast<int>(tasks.size()) - 1;
 #pragma omp parallel for schedule(dynamic, 1)
-    for (int ci = 0; ci < nc; ++ci) {
-      const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
-      kernel(begin, std::min(begin + chunk_size_, ne));
-    }
+    for (int t = 0; t < nt; ++t)
+      for (int ci = tasks[static_cast<size_t>(t)]; ci < tasks[static_cast<size_t>(t) + 1]; ++ci) {
+        const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
+        kernel(begin, std::min(begin + chunk_size_, ne));
+      }
   }
 }
 

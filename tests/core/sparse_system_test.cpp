@@ -343,9 +343,12 @@ TEST(SparseSystem, ColouredLoopNeverRunsNeighboursConcurrently) {
   std::vector<std::vector<int>> elements_of_node(static_cast<size_t>(mesh.num_nodes()));
   for (int e = 0; e < ne; ++e)
     for (int v : mesh.tets()[static_cast<size_t>(e)]) elements_of_node[static_cast<size_t>(v)].push_back(e);
-  for (int chunk : {1, 8, 32}) {
-    const core::SparseSystem sys(mesh, {}, chunk);
+  for (int chunk : {1, 8, 32})
+  for (core::LoopSchedule schedule : {core::LoopSchedule::chunks, core::LoopSchedule::runs}) {
+    const core::SparseSystem sys(mesh, {}, chunk, schedule);
     EXPECT_GE(sys.num_colours(), 2);
+    if (ne / chunk >= 8 * omp_get_max_threads())  // at least two chunks in each of the 4 x threads runs
+      EXPECT_EQ(sys.runs_in_runs(), schedule == core::LoopSchedule::runs) << "chunk " << chunk;
     std::atomic<long> tick{0};
     std::vector<long> begin(static_cast<size_t>(ne), -1), end(static_cast<size_t>(ne), -1);
     std::vector<std::atomic<int>> calls(static_cast<size_t>(ne));
@@ -365,7 +368,7 @@ TEST(SparseSystem, ColouredLoopNeverRunsNeighboursConcurrently) {
     for (const auto& els : elements_of_node)
       for (size_t i = 0; i < els.size(); ++i)
         for (size_t j = i + 1; j < els.size(); ++j) conflicts += overlap(els[i], els[j]);
-    EXPECT_EQ(conflicts, 0) << "chunk " << chunk;
+    EXPECT_EQ(conflicts, 0) << "chunk " << chunk << " runs " << sys.runs_in_runs();
     // The check has teeth only if elements did run concurrently.
     long concurrent = 0;
     for (int a = 0; a < ne; ++a)
@@ -375,6 +378,29 @@ TEST(SparseSystem, ColouredLoopNeverRunsNeighboursConcurrently) {
     if (omp_get_max_threads() > 1 && concurrent == 0)
       std::printf("note: chunk %d ran without overlap on this run; the conflict check was vacuous\n", chunk);
   }
+}
+
+// The automatic schedule takes runs only where they pay: a mesh with at least
+// kRunMinElements per run (4 runs per thread) in a local order, including a scattered one
+// that is regrouped in Morton order first; runs colour in two colours there.
+TEST(SparseSystem, AutomaticScheduleTakesRunsOnLargeMeshesOnly) {
+  const int runs = 4 * omp_get_max_threads();
+  const int cells_needed = (core::SparseSystem::kRunMinElements * runs + 5) / 6;
+  const int cx = (cells_needed + 99) / 100;
+  const core::TetMesh large = box({cx, 10, 10});
+  ASSERT_GE(large.num_elements(), core::SparseSystem::kRunMinElements * runs);
+  const core::SparseSystem sys(large, {});
+  EXPECT_TRUE(sys.runs_in_runs());
+  EXPECT_EQ(sys.num_colours(), 2);
+  std::vector<core::Tet> tets = large.tets();
+  std::shuffle(tets.begin(), tets.end(), std::mt19937(3));
+  const core::SparseSystem scattered(core::TetMesh(large.rest_positions(), tets), {});
+  EXPECT_TRUE(scattered.runs_in_runs());
+  EXPECT_LE(scattered.num_colours(), 3);
+  const core::SparseSystem small(box({8, 4, 4}), {});
+  EXPECT_FALSE(small.runs_in_runs());
+  const core::SparseSystem forced(large, {}, 32, core::LoopSchedule::chunks);
+  EXPECT_FALSE(forced.runs_in_runs());
 }
 
 // More than 64 mutually conflicting chunks: the first 64 take colours, the rest run one at
@@ -439,6 +465,7 @@ TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
   for (const auto& [name, nodes] : ordered.node_sets()) shuffled.set_node_set(name, nodes);
   for (const core::TetMesh* mesh : {&ordered, &shuffled})
     for (int chunk : {1, 5, 32, 100000})
+      for (core::LoopSchedule schedule : {core::LoopSchedule::chunks, core::LoopSchedule::runs})
       for (int fixing : {0, 1, 2}) {  // none; the xmin face wholly (blocks kept); single components too
         const bool with_fixed = fixing > 0;
         std::vector<std::uint8_t> fixed;
@@ -451,7 +478,11 @@ TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
         Eigen::VectorXd f_ref;
         const Eigen::MatrixXd K_ref =
             restrict_dense(dense_assembly(*mesh, random_block, &f_ref), free_dofs(fixed, 3 * mesh->num_nodes()));
-        core::SparseSystem sys(*mesh, fixed, chunk);
+        core::SparseSystem sys(*mesh, fixed, chunk, schedule);
+        // Runs are taken whenever forced and there is more than one chunk per run.
+        if (schedule == core::LoopSchedule::runs && mesh->num_elements() / chunk >= 8 * omp_get_max_threads())
+          EXPECT_TRUE(sys.runs_in_runs());
+        if (schedule == core::LoopSchedule::chunks) EXPECT_FALSE(sys.runs_in_runs());
         auto kernel = [](const int* elems, int n, core::ElementBatch& batch) {
           for (int l = 0; l < n; ++l) {
             const Mat12 K = random_block(elems[l]);
@@ -486,8 +517,9 @@ TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
             EXPECT_FALSE(sys.blocks_current());
           }
           const Eigen::MatrixXd K = sys.matrix();
-          ASSERT_TRUE(K.allFinite()) << "chunk " << chunk << " fixed " << with_fixed << " pass " << pass;
-          EXPECT_LT((K - K_ref).norm(), 1e-13 * K_ref.norm()) << "chunk " << chunk << " fixed " << with_fixed;
+          const int runs = sys.runs_in_runs();
+          ASSERT_TRUE(K.allFinite()) << "chunk " << chunk << " runs " << runs << " fixed " << with_fixed << " pass " << pass;
+          EXPECT_LT((K - K_ref).norm(), 1e-13 * K_ref.norm()) << "chunk " << chunk << " runs " << runs << " fixed " << with_fixed;
           EXPECT_LT((f - f_ref).norm(), 1e-13 * f_ref.norm());
         }
       }
