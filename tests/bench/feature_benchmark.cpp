@@ -11,9 +11,7 @@
 //
 //   bench_features [--steps 150] [--resolution 36 14 3] [--out docs/feature-costs.md]
 
-#include "core/contraction.hpp"
-#include "core/fiber_fields.hpp"
-#include "core/lv_ellipsoid.hpp"
+#include "benchmark_ventricle.hpp"
 #include "core/simulator.hpp"
 
 #include <CLI/CLI.hpp>
@@ -30,6 +28,7 @@
 #include <vector>
 
 namespace core = fiberfem::core;
+namespace bench = fiberfem::bench;
 
 namespace {
 
@@ -41,27 +40,8 @@ double median(std::vector<double> v) {
 
 struct Variant {
   std::string name;
-  bool fibers = false, mass_damping = false, stiffness_damping = false, gravity = false;
-  int contraction = 0;  // 0 off, 1 active stress, 2 nodal forces
+  bench::VentricleTerms terms;
 };
-
-core::Model make_model(const core::TetMesh& mesh, const std::vector<core::Vec3>& rule_fibers, const Variant& v) {
-  core::Model m(mesh);
-  core::EngineeringConstants c;
-  if (!v.fibers) c.E_T = c.E_L, c.nu_T = c.nu_LT, c.G_L = c.E_L / (2 * (1 + c.nu_LT));  // isotropic
-  m.region_materials = {core::Material::from_engineering(c, 1060.0)};
-  if (v.mass_damping || v.stiffness_damping)
-    m.region_damping = {core::RayleighDamping{v.mass_damping ? 10.0 : 0.0, v.stiffness_damping ? 0.002 : 0.0}};
-  if (v.fibers) m.fibers = rule_fibers;
-  m.fix_nodes(mesh.node_set("base"));
-  if (v.gravity) m.loads.gravity_m_s2 = core::Vec3(0, 0, -9.81);
-  if (v.contraction) {
-    m.contraction.mode = v.contraction == 2 ? core::ContractionMode::nodal_forces : core::ContractionMode::active_stress;
-    m.contraction.region_peak_pa = {5e3};
-    m.contraction.element_delay_s = core::pacing_delays(mesh.rest_positions(), mesh.tets(), core::Vec3(0, 0, -0.02), 0.6);
-  }
-  return m;
-}
 
 }  // namespace
 
@@ -75,23 +55,17 @@ int main(int argc, char** argv) {
   app.add_option("--out", out, "Also write the Markdown table here");
   CLI11_PARSE(app, argc, argv);
 
-  core::LvEllipsoidSpec spec;
-  spec.circumferential = res[0];
-  spec.longitudinal = res[1];
-  spec.transmural = res[2];
-  const core::TetMesh mesh = core::make_lv_ellipsoid(spec);
-  const std::vector<core::Vec3> fibers =
-      core::helix_rule_fibers(mesh, core::laplace_coordinate(mesh, mesh.node_set("endo"), mesh.node_set("epi")), core::HelixRule{})
-          .fiber;
+  const core::TetMesh mesh = bench::ventricle_mesh({res[0], res[1], res[2]});
+  const std::vector<core::Vec3> fibers = bench::ventricle_fibers(mesh);
   const std::vector<Variant> variants = {
       {"baseline: isotropic, no damping, gravity or contraction"},
-      {"+ fibers (helix rule)", true},
-      {"+ mass damping", false, true},
-      {"+ stiffness damping", false, false, true},
-      {"+ gravity", false, false, false, true},
-      {"+ contraction, active stress (paced)", false, false, false, false, 1},
-      {"+ contraction, nodal forces (paper)", false, false, false, false, 2},
-      {"all of them (fibers, both dampings, gravity, active stress)", true, true, true, true, 1},
+      {"+ fibers (helix rule)", {true}},
+      {"+ mass damping", {false, true}},
+      {"+ stiffness damping", {false, false, true}},
+      {"+ gravity", {false, false, false, true}},
+      {"+ contraction, active stress (paced)", {false, false, false, false, 1}},
+      {"+ contraction, nodal forces (paper)", {false, false, false, false, 2}},
+      {"all of them (fibers, both dampings, gravity, active stress)", {true, true, true, true, 1}},
   };
   // A small swirl about the long axis, the same for every variant, so every one moves.
   core::Positions v0(3, mesh.num_nodes());
@@ -103,7 +77,7 @@ int main(int argc, char** argv) {
   for (const Variant& v : variants) {
     core::SimulatorSettings st;
     st.max_energy_gain = std::numeric_limits<double>::infinity();  // no retries: same work per step
-    sims.push_back(std::make_unique<core::Simulator>(make_model(mesh, fibers, v), st));
+    sims.push_back(std::make_unique<core::Simulator>(bench::ventricle_model(mesh, fibers, v.terms), st));
     sims.back()->set_state(mesh.rest_positions(), v0);
   }
   const size_t nv = variants.size();
