@@ -1,5 +1,7 @@
 #include "core/linear_solver.hpp"
 
+#include "core/amg_preconditioner.hpp"
+
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCholesky>
@@ -23,6 +25,7 @@ const char* to_string(PreconditionerKind k) {
   switch (k) {
     case PreconditionerKind::block_jacobi: return "block_jacobi";
     case PreconditionerKind::cholesky: return "cholesky";
+    case PreconditionerKind::amg: return "amg";
   }
   return "?";
 }
@@ -56,6 +59,9 @@ void SolverSettings::validate() const {
     throw std::invalid_argument("solver: recycled_solutions must be in [0, 64], got " + std::to_string(recycled_solutions));
   if (!(failure_residual > 0 && std::isfinite(failure_residual)))
     throw std::invalid_argument("solver: failure_residual must be > 0, got " + std::to_string(failure_residual));
+  if (method == LinearSolverKind::pcg && preconditioner == PreconditionerKind::amg && !has_amg())
+    throw std::invalid_argument(
+        "solver: preconditioner amg needs a build with AMGCL (Debian's libamgcl-dev, scripts/setup.sh); use cholesky");
 }
 
 namespace {
@@ -537,6 +543,9 @@ class CholeskyFactor {
 /// it was made at.
 struct FactorSlot {
   CholeskyFactor factor;
+  AmgHierarchy amg;                 // instead of the factor, with PreconditionerKind::amg
+  SparseMatrix amg_matrix;          // the matrix the amg was built from (checkpoints)
+  Eigen::VectorXd amg_positions;    // node-block positions the amg was built at
   std::vector<Mat3> at_factor;
   Eigen::Index rows = -1;
   bool stale = true;       // refactorise before the next use
@@ -555,6 +564,13 @@ struct WarpState {
   std::vector<Mat3> warp;         // current * at_factor^T, per block
   mutable Eigen::VectorXd work;
   const CholeskyFactor& factor() const { return slot->factor; }
+  /// z = A_0^-1 r with the slot's factor, or one V-cycle of its amg hierarchy.
+  void apply_lagged(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+    if (slot->amg.ok())
+      slot->amg.apply(r, z);
+    else
+      slot->factor.precondition(r, z);
+  }
   void update_warp() {
     const std::vector<Mat3>& at = slot->at_factor;
     const size_t nb = current.size();
@@ -585,7 +601,7 @@ class WarpCholeskyPreconditioner {
   void _solve_impl(const Rhs& b, Dest& x) const {
     const bool warp = !s_->warp.empty() && s_->starts.size() == s_->warp.size() + 1;
     if (!warp) {
-      s_->factor().precondition(b, x);
+      s_->apply_lagged(b, x);
       return;
     }
     Eigen::VectorXd& y = s_->work;
@@ -596,7 +612,7 @@ class WarpCholeskyPreconditioner {
       if (s_->starts[static_cast<size_t>(k) + 1] - r0 == 3)
         y.segment<3>(r0) = s_->warp[static_cast<size_t>(k)].transpose() * b.template segment<3>(r0);
     }
-    s_->factor().precondition(y, x);
+    s_->apply_lagged(y, x);
     for (int k = 0; k < nb; ++k) {
       const int r0 = s_->starts[static_cast<size_t>(k)];
       if (s_->starts[static_cast<size_t>(k) + 1] - r0 == 3) {
@@ -895,8 +911,8 @@ class PcgSolver final : public LinearSolver {
     SolveStats st;
     FactorSlot& slot = select_slot();
     warp_.slot = &slot;
-    if (slot.stale || !slot.factor.ok() || slot.rows != A.rows()) refactor(A, slot, st);
-    if (!slot.factor.ok()) return failed(st);
+    if (slot.stale || !lagged_ok(slot) || slot.rows != A.rows()) refactor(A, slot, st);
+    if (!lagged_ok(slot)) return failed(st);
     warp_.update_warp();
     first_guess_ = x;
     const Eigen::VectorXd& x0 = first_guess_;
@@ -905,7 +921,7 @@ class PcgSolver final : public LinearSolver {
     if (!cg.ok && st.factorizations == 0) {
       // The old factor was too far from this matrix: refresh it and solve again.
       refactor(A, slot, st);
-      if (!slot.factor.ok()) return failed(st);
+      if (!lagged_ok(slot)) return failed(st);
       warp_.update_warp();
       first = cg.iterations;
       x = x0;
@@ -928,7 +944,9 @@ class PcgSolver final : public LinearSolver {
       return;
     }
     slot.excess += std::max(0, iterations - slot.baseline);
-    if (s_.refresh_budget > 0 && slot.excess > s_.refresh_budget * slot.factor.iterations_per_factorisation())
+    const double setup_cost =
+        s_.preconditioner == PreconditionerKind::amg ? kAmgSetupIterations : slot.factor.iterations_per_factorisation();
+    if (s_.refresh_budget > 0 && slot.excess > s_.refresh_budget * setup_cost)
       slot.stale = true;
   }
 
@@ -957,16 +975,24 @@ class PcgSolver final : public LinearSolver {
   }
 
  public:
-  std::string name() const override {
-    return s_.preconditioner == PreconditionerKind::block_jacobi ? "pcg/block_jacobi" : "pcg/cholesky";
+  std::string name() const override { return std::string("pcg/") + to_string(s_.preconditioner); }
+  FactorInfo factor_info() const override {
+    if (!warp_.slot) return {};
+    if (!warp_.slot->amg.ok()) return warp_.slot->factor.info();
+    FactorInfo i;  // an amg hierarchy: no factor entries or flops to report
+    i.factored = true;
+    i.ordering = "amg";
+    i.solve_threads = omp_get_max_threads();
+    return i;
   }
-  FactorInfo factor_info() const override { return warp_.slot ? warp_.slot->factor.info() : FactorInfo{}; }
   void set_blocks(std::vector<int> starts) override {
     warp_.starts = starts;
     jacobi_pre_.set_blocks(std::move(starts));
   }
-  bool uses_block_rotations() const override { return s_.preconditioner == PreconditionerKind::cholesky; }
+  bool uses_block_rotations() const override { return s_.preconditioner != PreconditionerKind::block_jacobi; }
   void set_block_rotations(const std::vector<Mat3>& rotations) override { warp_.current = rotations; }
+  bool uses_block_positions() const override { return s_.preconditioner == PreconditionerKind::amg; }
+  void set_block_positions(const Eigen::VectorXd& positions) override { positions_ = positions; }
   void invalidate() override {
     for (auto& sl : slots_) sl->stale = true;
   }
@@ -986,10 +1012,15 @@ class PcgSolver final : public LinearSolver {
     st.clock = clock_;
     for (const auto& sl : slots_) {
       LinearSolverState::Factor f;
-      f.factored = sl->factor.ok();
+      f.factored = lagged_ok(*sl);
       if (f.factored) {
-        const auto& A = sl->factor.matrix();
-        f.matrix_values = Eigen::Map<const Eigen::VectorXd>(A.valuePtr(), A.nonZeros());
+        if (sl->amg.ok()) {
+          f.matrix_values = Eigen::Map<const Eigen::VectorXd>(sl->amg_matrix.valuePtr(), sl->amg_matrix.nonZeros());
+          f.setup_positions = sl->amg_positions;
+        } else {
+          const auto& A = sl->factor.matrix();
+          f.matrix_values = Eigen::Map<const Eigen::VectorXd>(A.valuePtr(), A.nonZeros());
+        }
       }
       f.at_factor = sl->at_factor;
       f.rows = sl->rows;
@@ -1027,8 +1058,15 @@ class PcgSolver final : public LinearSolver {
       if (f.factored) {
         SparseMatrix A = pattern;
         Eigen::Map<Eigen::VectorXd>(A.valuePtr(), A.nonZeros()) = f.matrix_values;
-        sl->factor.set_single_precision(s_.single_precision_preconditioner);
-        sl->factor.factorize(A);
+        if (s_.preconditioner == PreconditionerKind::amg) {
+          if (f.setup_positions.size() != A.rows())
+            throw std::invalid_argument("linear solver state: an amg hierarchy without its " + std::to_string(A.rows()) +
+                                        " setup positions");
+          build_amg(A, f.setup_positions, *sl);
+        } else {
+          sl->factor.set_single_precision(s_.single_precision_preconditioner);
+          sl->factor.factorize(A);
+        }
       }
       sl->at_factor = f.at_factor;
       sl->rows = f.rows;
@@ -1050,10 +1088,22 @@ class PcgSolver final : public LinearSolver {
         A, b, x, s_.tolerance, s_.max_iterations, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { pre._solve_impl(r, z); },
         Ax0);
   }
+  static bool lagged_ok(const FactorSlot& slot) { return slot.amg.ok() || slot.factor.ok(); }
+  void build_amg(const SparseMatrix& A, const Eigen::VectorXd& positions, FactorSlot& slot) {
+    slot.amg_matrix = A;  // kept for checkpoints (a Cholesky factor keeps its own copy)
+    slot.amg_positions = positions;
+    if (!slot.amg.build(A, positions)) slot.amg_matrix = SparseMatrix();
+  }
   void refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats& st) {
     if (use_blocks_) system_->sync_matrix();  // the factorisation reads the CSR values (of A)
-    slot.factor.set_single_precision(s_.single_precision_preconditioner);
-    slot.factor.factorize(A);
+    if (s_.preconditioner == PreconditionerKind::amg) {
+      // Rigid-body modes about the current configuration (about the rest one, 40 instead
+      // of 9 iterations were measured once the beam had swung).
+      build_amg(A, positions_.size() == A.rows() ? positions_ : Eigen::VectorXd(), slot);
+    } else {
+      slot.factor.set_single_precision(s_.single_precision_preconditioner);
+      slot.factor.factorize(A);
+    }
     slot.at_factor = warp_.current;
     slot.rows = A.rows();
     slot.stale = false;
@@ -1073,6 +1123,7 @@ class PcgSolver final : public LinearSolver {
   WarpState warp_;
   WarpCholeskyPreconditioner warp_pre_;
   SparseSystem* system_ = nullptr;
+  Eigen::VectorXd positions_;  // node-block positions of the next solve (amg)
   bool use_blocks_ = false;
   Eigen::VectorXd scaled_b_, first_guess_;  // solve()'s b / |b| and solve_scaled()'s x0 (kept: no allocation)
   std::vector<std::unique_ptr<FactorSlot>> slots_;

@@ -25,8 +25,20 @@ enum class PreconditionerKind {
   /// a factorisation (`refresh_budget`) or a solve needs more than `refresh_iterations`;
   /// between refreshes a step costs a few triangular solves. Memory: the factor.
   cholesky,
+  /// Smoothed-aggregation algebraic multigrid (AMGCL; core/amg_preconditioner.hpp) of an
+  /// earlier step's matrix, one single-precision V-cycle per iteration, with the rigid-body
+  /// modes of the configuration it was built in; lagged and warped by the nodes' rotations
+  /// exactly as the cholesky factor (same refresh rules, a setup priced at
+  /// kAmgSetupIterations iterations). More iterations than the factor but each about a
+  /// third of its cost on 250,000 tets, and a setup of a fraction of a second where a
+  /// factorisation takes seconds (a beam) to minutes (a ventricle): docs/performance.md.
+  /// Needs a build with AMGCL (has_amg()) and every node wholly free or wholly fixed.
+  amg,
 };
 const char* to_string(PreconditionerKind k);
+/// What an amg setup costs, counted in PCG iterations for the refresh budget: measured
+/// on the 245,760-tet beam, a setup takes about 200 ms and an iteration 6.2 ms.
+constexpr double kAmgSetupIterations = 32.0;
 /// "pcg" or "direct".
 const char* to_string(LinearSolverKind k);
 
@@ -102,6 +114,9 @@ struct LinearSolverState {
     bool factored = false;           ///< The factorisation succeeded (else refactorised at next use).
     Eigen::VectorXd matrix_values;   ///< Values of the factorised matrix (system pattern).
     std::vector<Mat3> at_factor;     ///< Node-block rotations at factorisation time.
+    /// amg: node-block positions its rigid-body modes were built at (3 per block); empty
+    /// for a Cholesky factor.
+    Eigen::VectorXd setup_positions;
     Eigen::Index rows = -1;          ///< Rows of the factorised matrix.
     bool stale = true;               ///< Refactorise before the next use.
     int baseline = -1;               ///< Iterations of the first solve with it (-1: none yet).
@@ -135,6 +150,12 @@ class LinearSolver {
   virtual void set_blocks(std::vector<int> /*starts*/) {}
   /// Whether `solve` wants the current rotation of each node block (warp preconditioner).
   virtual bool uses_block_rotations() const { return false; }
+  /// Whether `solve` wants the current position of each node block (the amg
+  /// preconditioner's rigid-body modes).
+  virtual bool uses_block_positions() const { return false; }
+  /// Current positions of the node blocks, 3 per block in block order, m; called before
+  /// `solve` when uses_block_positions().
+  virtual void set_block_positions(const Eigen::VectorXd& /*positions*/) {}
   /// Current rotation of each node block (same order as the blocks); called before `solve`.
   virtual void set_block_rotations(const std::vector<Mat3>& /*rotations*/) {}
   /// The matrix changed by more than a step's motion (time step, material, damping):

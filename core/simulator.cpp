@@ -76,6 +76,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
           model_.region_damping[static_cast<size_t>(model_.mesh.regions()[static_cast<size_t>(e)])].stiffness_s;
   update_node_masses();
   refresh_external_forces();
+  check_solver_fits(settings_.solver);
   solver_ = make_linear_solver(settings_.solver);
   solver_->set_blocks(sys_.node_block_starts());
   solver_->set_system(&sys_);
@@ -480,6 +481,12 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
     update_block_rotations();
     solver_->set_block_rotations(block_R_);
   }
+  if (solver_->uses_block_positions()) {
+    block_x_.resize(3 * static_cast<Eigen::Index>(block_node_.size()));
+    for (size_t k = 0; k < block_node_.size(); ++k)
+      block_x_.segment<3>(3 * static_cast<Eigen::Index>(k)) = x_.segment<3>(3 * static_cast<Eigen::Index>(block_node_[k]));
+    solver_->set_block_positions(block_x_);
+  }
   if (!solver_->reads_blocks()) sys_.sync_matrix();
   const SolveStats st = solver_->solve(sys_.matrix(), rhs_, vfree_);
   r.solver_factorizations += st.factorizations;
@@ -753,8 +760,17 @@ void Simulator::set_loads(const Loads& loads) {
   refresh_external_forces();
 }
 
+void Simulator::check_solver_fits(const SolverSettings& s) const {
+  // The amg hierarchy is built on 3 x 3 node blocks (the rigid-body modes are per node).
+  if (s.method == LinearSolverKind::pcg && s.preconditioner == PreconditionerKind::amg && !sys_.has_blocks())
+    throw std::invalid_argument(
+        "solver: preconditioner amg needs every node wholly free or wholly fixed, and this model fixes single "
+        "components of some nodes: use preconditioner cholesky");
+}
+
 void Simulator::set_solver_settings(const SolverSettings& s) {
   s.validate();
+  check_solver_fits(s);
   settings_.solver = s;
   assembled_ahead_ = false;
   solver_ = make_linear_solver(s);

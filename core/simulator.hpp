@@ -233,7 +233,10 @@ class Simulator {
   std::vector<int> block_node_;
   std::vector<int> node_elem_start_, node_elems_;
   std::vector<Eigen::Quaterniond> block_q_;
+  /// @throws std::invalid_argument when `s` cannot work on this system (amg needs whole node blocks).
+  void check_solver_fits(const SolverSettings& s) const;
   std::vector<Mat3> block_R_;
+  Eigen::VectorXd block_x_;  // node-block positions for the amg preconditioner
   double time_s_ = 0;
   long steps_ = 0;
   double contraction_origin_s_ = 0;  // beats are counted from here (set_contraction)

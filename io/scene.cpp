@@ -819,11 +819,12 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     if (s.has("rotation"))
       st.rotation = choice(ctx, s["rotation"], "solver.rotation", {"svd", "polar"}) == "svd" ? core::RotationMethod::svd
                                                                                             : core::RotationMethod::polar;
-    if (s.has("preconditioner"))
-      st.solver.preconditioner = choice(ctx, s["preconditioner"], "solver.preconditioner", {"cholesky", "block_jacobi"}) ==
-                                         "cholesky"
-                                     ? core::PreconditionerKind::cholesky
-                                     : core::PreconditionerKind::block_jacobi;
+    if (s.has("preconditioner")) {
+      const std::string p = choice(ctx, s["preconditioner"], "solver.preconditioner", {"cholesky", "block_jacobi", "amg"});
+      st.solver.preconditioner = p == "cholesky" ? core::PreconditionerKind::cholesky
+                                 : p == "amg"    ? core::PreconditionerKind::amg
+                                                 : core::PreconditionerKind::block_jacobi;
+    }
     if (s.has("corotation"))
       st.corotation = choice(ctx, s["corotation"], "solver.corotation", {"true", "false"}) == "true";
     if (s.has("warm_start")) {

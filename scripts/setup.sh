@@ -28,6 +28,8 @@ packages=(
   iproute2
   # the fuzz-labelled test: clang, libFuzzer and the sanitizers (scripts/fuzz.sh)
   clang libclang-rt-14-dev libomp-14-dev ccache
+  # the amg preconditioner (AMGCL, header-only; Debian's contrib component, enabled below)
+  libamgcl-dev
 )
 
 missing=()
@@ -43,6 +45,15 @@ if [[ "${FIBERFEM_SKIP_APT:-0}" != 1 && ${#missing[@]} -gt 0 ]]; then
   if [[ $(id -u) -ne 0 ]]; then sudo_cmd=(sudo); fi
   export DEBIAN_FRONTEND=noninteractive
   "${sudo_cmd[@]}" apt-get update -q
+  # libamgcl-dev is in Debian's contrib component, not main: add contrib for the same
+  # archive when no configured source offers the package yet.
+  if [[ " ${missing[*]} " == *" libamgcl-dev "* ]] && ! apt-cache policy libamgcl-dev | grep -q "Candidate: [0-9]"; then
+    echo "setup: enabling Debian's contrib component for libamgcl-dev"
+    printf 'Types: deb\nURIs: http://deb.debian.org/debian\nSuites: %s %s-updates\nComponents: contrib\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
+      "$(. /etc/os-release && echo "$VERSION_CODENAME")" "$(. /etc/os-release && echo "$VERSION_CODENAME")" |
+      "${sudo_cmd[@]}" tee /etc/apt/sources.list.d/fiberfem-contrib.sources >/dev/null
+    "${sudo_cmd[@]}" apt-get update -q
+  fi
   "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
 else
   echo "setup: Debian packages already installed"

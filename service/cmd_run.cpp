@@ -130,8 +130,8 @@ void add_run_command(CLI::App& app, int& exit_code) {
   // Shorthands for scene keys (each becomes a --set before the explicit ones).
   run->add_option("--dt", a->dt, "Time step, s (solver.dt)")->check(CLI::Range(1e-6, 10.0));
   run->add_option("--solver", a->solver, "pcg | direct (solver.method)")->check(CLI::IsMember({"pcg", "direct"}));
-  run->add_option("--preconditioner", a->preconditioner, "cholesky | block_jacobi (solver.preconditioner)")
-      ->check(CLI::IsMember({"cholesky", "block_jacobi"}));
+  run->add_option("--preconditioner", a->preconditioner, "cholesky | block_jacobi | amg (solver.preconditioner)")
+      ->check(CLI::IsMember({"cholesky", "block_jacobi", "amg"}));
   run->add_option("--tolerance", a->tolerance, "PCG relative tolerance (solver.tolerance)")->check(CLI::Range(1e-14, 0.5));
   run->add_option("--rotation", a->rotation, "polar | svd (solver.rotation)")->check(CLI::IsMember({"svd", "polar"}));
   run->add_option("--max-energy-gain", a->max_energy_gain, "Energy check per step, relative; inf: off (solver.max_energy_gain)");

@@ -531,8 +531,10 @@ CommandResult RunControl::dispatch(const std::string& kind, const std::string& t
     }
     if (a.has("preconditioner")) {
       const std::string p = a.text("preconditioner");
-      if (p != "cholesky" && p != "block_jacobi") throw Reject("'preconditioner' must be cholesky or block_jacobi");
-      s.preconditioner = p == "cholesky" ? core::PreconditionerKind::cholesky : core::PreconditionerKind::block_jacobi;
+      if (p != "cholesky" && p != "block_jacobi" && p != "amg") throw Reject("'preconditioner' must be cholesky, block_jacobi or amg");
+      s.preconditioner = p == "cholesky" ? core::PreconditionerKind::cholesky
+                         : p == "amg"    ? core::PreconditionerKind::amg
+                                         : core::PreconditionerKind::block_jacobi;
     }
     if (a.has("tolerance")) s.tolerance = a.number("tolerance", 1e-14, 0.5);
     if (a.has("max_iterations")) s.max_iterations = a.integer("max_iterations", 1, 1000000);

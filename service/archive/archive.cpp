@@ -437,6 +437,9 @@ void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& pa
     const auto& f = c.solver.factors[k];
     b.add("solver.factor" + std::to_string(k) + ".matrix_values", f.matrix_values.data(), static_cast<size_t>(f.matrix_values.size()));
     add_matrices(b, "solver.factor" + std::to_string(k) + ".at_factor", f.at_factor);
+    if (f.setup_positions.size() > 0)  // an amg hierarchy's setup positions (absent for a Cholesky factor)
+      b.add("solver.factor" + std::to_string(k) + ".setup_positions", f.setup_positions.data(),
+            static_cast<size_t>(f.setup_positions.size()));
     factors.push_back({{"factored", f.factored}, {"rows", f.rows}, {"stale", f.stale}, {"baseline", f.baseline},
                        {"excess", f.excess}, {"key", f.key}, {"last_used", f.last_used}});
   }
@@ -822,6 +825,9 @@ core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>
     F.last_used = f.at("last_used");
     F.matrix_values = vector_of(section(h, data, "solver.factor" + std::to_string(i) + ".matrix_values"));
     F.at_factor = matrices_of(section(h, data, "solver.factor" + std::to_string(i) + ".at_factor"));
+    const std::string positions = "solver.factor" + std::to_string(i) + ".setup_positions";
+    for (const auto& sec : h.at("layout"))
+      if (sec.at("name") == positions) F.setup_positions = vector_of(section(h, data, positions));
     c.solver.factors.push_back(std::move(F));
     ++i;
   }

@@ -58,7 +58,7 @@ int main(int argc, char** argv) {
   const core::TetMesh mesh = bench::ventricle_mesh({res[0], res[1], res[2]});
   const std::vector<core::Vec3> fibers = bench::ventricle_fibers(mesh);
   const std::vector<Variant> variants = {
-      {"baseline: isotropic, no damping, gravity or contraction"},
+      {"baseline: isotropic, no damping, gravity or contraction", {}},
       {"+ fibers (helix rule)", {true}},
       {"+ mass damping", {false, true}},
       {"+ stiffness damping", {false, false, true}},

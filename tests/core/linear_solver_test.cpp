@@ -4,6 +4,7 @@
 // the exactness of the block-Jacobi and warped-Cholesky preconditioners on matrices built
 // so that they are exact, factor reuse and refresh, and settings validation.
 
+#include "core/amg_preconditioner.hpp"
 #include "core/box_generator.hpp"
 #include "core/element.hpp"
 #include "core/linear_solver.hpp"
@@ -614,4 +615,158 @@ TEST(SolverSettings, ValidateNamesTheField) {
     expect_invalid([&] { s.validate(); }, {"solver", field});
     expect_invalid([&] { core::make_linear_solver(s); }, {field});
   }
+}
+
+// ------------------------------------------------------------------------------ amg
+
+namespace {
+
+// A stiff box (the mass term a thousandth of the test system's: K dominates, as in the
+// engine's steps at large h c / dx), clamped at x = 0, with its free nodes' positions.
+struct StiffBox {
+  core::TetMesh mesh;
+  core::SparseSystem sys;
+  Eigen::VectorXd positions;  // 3 per free node, block order
+  Eigen::VectorXd b;
+};
+
+StiffBox make_stiff_box(std::array<int, 3> cells) {
+  core::BoxSpec s;
+  s.size_m = Vec3(0.1, 0.02, 0.02);
+  s.cells = cells;
+  core::TetMesh mesh = core::make_box(s);
+  std::vector<std::uint8_t> fixed(static_cast<size_t>(3 * mesh.num_nodes()), 0);
+  for (int n : mesh.node_set("xmin"))
+    for (int c = 0; c < 3; ++c) fixed[static_cast<size_t>(3 * n + c)] = 1;
+  core::SparseSystem sys(mesh, fixed);
+  assemble(sys, mesh, 1e-3);
+  Eigen::VectorXd positions(sys.num_free());
+  for (int n = 0; n < mesh.num_nodes(); ++n) {
+    const int f = sys.free_index()[static_cast<size_t>(3 * n)];
+    if (f >= 0) positions.segment<3>(f) = mesh.rest_positions().col(n);
+  }
+  std::mt19937 rng(91);
+  std::normal_distribution<double> nd(0, 1);
+  Eigen::VectorXd b(sys.num_free());
+  for (Eigen::Index i = 0; i < b.size(); ++i) b(i) = nd(rng);
+  return StiffBox{std::move(mesh), std::move(sys), positions, b};
+}
+
+std::unique_ptr<core::LinearSolver> make_amg(const StiffBox& S, double tol, const std::vector<Mat3>& rotations) {
+  auto solver = make(pcg(core::PreconditionerKind::amg, tol), S.sys);
+  EXPECT_TRUE(solver->uses_block_rotations());
+  EXPECT_TRUE(solver->uses_block_positions());
+  solver->set_block_rotations(rotations);
+  solver->set_block_positions(S.positions);
+  return solver;
+}
+
+}  // namespace
+
+// The amg preconditioner against independent references: the solution of the direct
+// (CHOLMOD) solver, and block Jacobi's iteration count on the same stiff system. A
+// multigrid with the rigid-body modes needs a few tens of iterations where block Jacobi
+// needs hundreds; its hierarchy has more than one level.
+TEST(LinearSolver, AmgPcgMatchesTheDirectSolveInFewIterations) {
+  if (!core::has_amg()) GTEST_SKIP() << "built without AMGCL";
+  const StiffBox S = make_stiff_box({30, 6, 6});
+  const core::SparseMatrix& A = S.sys.matrix();
+  const size_t nb = S.sys.node_block_starts().size() - 1;
+  core::SolverSettings direct;
+  direct.method = core::LinearSolverKind::direct;
+  Eigen::VectorXd x_ref;
+  ASSERT_TRUE(core::make_linear_solver(direct)->solve(A, S.b, x_ref).ok);
+
+  auto amg = make_amg(S, 1e-10, std::vector<Mat3>(nb, Mat3::Identity()));
+  EXPECT_EQ(amg->name(), "pcg/amg");
+  Eigen::VectorXd x;
+  const core::SolveStats st = amg->solve(A, S.b, x);
+  ASSERT_TRUE(st.ok);
+  EXPECT_EQ(st.factorizations, 1) << "one hierarchy setup";
+  EXPECT_EQ(amg->factor_info().ordering, "amg");
+  EXPECT_LE(residual(A, S.b, x), 2e-10);
+  EXPECT_LT((x - x_ref).norm(), 1e-6 * x_ref.norm());
+
+  Eigen::VectorXd xj;
+  const core::SolveStats jacobi = make(pcg(core::PreconditionerKind::block_jacobi, 1e-10, 20000), S.sys)->solve(A, S.b, xj);
+  ASSERT_TRUE(jacobi.ok);
+  EXPECT_LT(4 * st.iterations, jacobi.iterations) << "amg " << st.iterations << ", block Jacobi " << jacobi.iterations;
+  EXPECT_LE(st.iterations, 60);
+
+  core::AmgHierarchy h;
+  ASSERT_TRUE(h.build(A, S.positions));
+  EXPECT_GE(h.levels(), 2);
+  EXPECT_GT(h.operator_complexity(), 1.0);
+  EXPECT_LT(h.operator_complexity(), 3.0);
+  // Sizes that do not make node blocks are refused, not crashed on.
+  EXPECT_FALSE(h.build(A, Eigen::VectorXd::Zero(3)));
+  EXPECT_FALSE(h.ok());
+}
+
+// Warped as the Cholesky factor: for A1 = W A0 W^T (each node block turned by Q_k) the
+// hierarchy of A0 warped by Q is exactly the hierarchy of A1, so PCG on A1 takes the
+// iterations of PCG on A0 with the rotated right-hand side W^T b; without the warp the old
+// hierarchy needs more.
+TEST(LinearSolver, WarpedAmgIsExactForRotatedMatrices) {
+  if (!core::has_amg()) GTEST_SKIP() << "built without AMGCL";
+  const StiffBox S = make_stiff_box({20, 4, 4});
+  const core::SparseMatrix& A0 = S.sys.matrix();
+  const std::vector<int> starts = S.sys.node_block_starts();
+  const size_t nb = starts.size() - 1;
+  std::mt19937 rng(92);
+  std::vector<Mat3> Q(nb);
+  std::vector<Eigen::Triplet<double>> w;
+  for (size_t k = 0; k < nb; ++k) {
+    Q[k] = random_rotation(rng);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) w.emplace_back(starts[k] + i, starts[k] + j, Q[k](i, j));
+  }
+  core::SparseMatrix W(S.sys.num_free(), S.sys.num_free());
+  W.setFromTriplets(w.begin(), w.end());
+  const core::SparseMatrix A1 = W * A0 * core::SparseMatrix(W.transpose());
+  const Eigen::VectorXd b0 = W.transpose() * S.b;
+
+  core::SolverSettings settings = pcg(core::PreconditionerKind::amg, 1e-8);
+  settings.warm_start = false;
+  auto on_a0 = core::make_linear_solver(settings);
+  on_a0->set_blocks(starts);
+  on_a0->set_block_rotations(std::vector<Mat3>(nb, Mat3::Identity()));
+  on_a0->set_block_positions(S.positions);
+  Eigen::VectorXd x0;
+  const core::SolveStats reference = on_a0->solve(A0, b0, x0);
+  ASSERT_TRUE(reference.ok);
+
+  auto warped = core::make_linear_solver(settings);
+  warped->set_blocks(starts);
+  warped->set_block_rotations(std::vector<Mat3>(nb, Mat3::Identity()));
+  warped->set_block_positions(S.positions);
+  Eigen::VectorXd x;
+  ASSERT_EQ(warped->solve(A0, S.b, x).factorizations, 1);
+  warped->set_block_rotations(Q);
+  x.setZero();
+  const core::SolveStats st = warped->solve(A1, S.b, x);
+  ASSERT_TRUE(st.ok);
+  EXPECT_EQ(st.factorizations, 0) << "the hierarchy of A0 is reused";
+  EXPECT_NEAR(st.iterations, reference.iterations, 1);
+  EXPECT_LE(residual(A1, S.b, x), 2e-8);
+  EXPECT_LT((x - W * x0).norm(), 1e-5 * x.norm()) << "the solution is the rotated one";
+
+  auto unwarped = core::make_linear_solver(settings);
+  unwarped->set_blocks(starts);
+  unwarped->set_block_rotations(std::vector<Mat3>(nb, Mat3::Identity()));
+  unwarped->set_block_positions(S.positions);
+  ASSERT_EQ(unwarped->solve(A0, S.b, x).factorizations, 1);
+  x.setZero();
+  const core::SolveStats st2 = unwarped->solve(A1, S.b, x);
+  EXPECT_GT(st2.iterations, st.iterations + 5);
+}
+
+TEST(SolverSettings, AmgIsRefusedOnlyWithoutAmgcl) {
+  core::SolverSettings s;
+  s.preconditioner = core::PreconditionerKind::amg;
+  EXPECT_STREQ(core::to_string(s.preconditioner), "amg");
+  if (core::has_amg())
+    EXPECT_NO_THROW(s.validate());
+  else
+    expect_invalid([&] { s.validate(); }, {"amg", "AMGCL"});
 }
