@@ -5,6 +5,7 @@
 // A step that refactorises the preconditioner or retries with substeps is allowed to
 // allocate (CHOLMOD's numeric factorisation takes workspace); every other step must not.
 
+#include "core/amg_preconditioner.hpp"
 #include "core/builtin_scenes.hpp"
 #include "core/simulator.hpp"
 #include "test_support.hpp"
@@ -142,5 +143,19 @@ TEST(StepAllocation, SteadyStepsWithBlockJacobiAllocateNothing) {
   for (int i = 0; i < 5; ++i) sim.step();
   const Tally t = count_steps(sim, 30);
   EXPECT_GE(t.steady, 20);
+  EXPECT_EQ(t.steady_allocations, 0);
+}
+
+// The amg preconditioner's V-cycle works in the hierarchy's own vectors: steady steps
+// (no setup) allocate nothing either.
+TEST(StepAllocation, SteadyStepsWithAmgAllocateNothing) {
+  if (!core::has_amg()) GTEST_SKIP() << "built without AMGCL";
+  core::SimulatorSettings s;
+  s.solver.preconditioner = core::PreconditionerKind::amg;
+  s.solver.refresh_iterations = 32;
+  core::Simulator sim(paper_beam(), s);
+  for (int i = 0; i < 5; ++i) sim.step();
+  const Tally t = count_steps(sim, 60);
+  EXPECT_GE(t.steady, 30);
   EXPECT_EQ(t.steady_allocations, 0);
 }
