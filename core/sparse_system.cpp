@@ -105,8 +105,8 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   const int ne = static_cast<int>(tets_.size());
   order_.resize(static_cast<size_t>(ne));
   for (int e = 0; e < ne; ++e) order_[static_cast<size_t>(e)] = e;
-  const auto [lo, hi] = mesh.bounding_box();
-  const Vec3 span = (hi - lo).cwiseMax(1e-300);
+  const auto bounds = mesh.bounding_box();
+  const Vec3 lo = bounds.first, span = (bounds.second - bounds.first).cwiseMax(1e-300);
   auto centroid = [&](int e) {
     Vec3 c = Vec3::Zero();
     for (int v : tets_[static_cast<size_t>(e)]) c += 0.25 * mesh.rest_positions().col(v);
