@@ -1,6 +1,5 @@
 #include "io/scene.hpp"
 
-#include "core/amg_preconditioner.hpp"
 
 #include "core/box_generator.hpp"
 #include "core/lv_ellipsoid.hpp"
@@ -175,9 +174,6 @@ std::vector<int> select_nodes(const Ctx& ctx, const YAML::Node& n, const std::st
 // Beyond this E_L / E_T the stability map (docs/speed-accuracy.md) found a loaded tissue
 // beam that gained energy and did not return to rest (10,000); up to 1,000 it was stable.
 constexpr double kMaxStableFiberRatio = 1000.0;
-
-// Meshes from this many tetrahedra on run the fidelity presets with the amg preconditioner.
-constexpr int kAmgPresetElements = 50000;
 
 // The fidelity presets (scene key `fidelity`, docs/scenes.md), chosen from the measured
 // Pareto fronts of docs/speed-accuracy.md. Explicit keys of the scene override them.
@@ -802,18 +798,6 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     st.dt_s = fidelity->dt_s;
     st.solver.tolerance = fidelity->tolerance;
     if (fidelity->cost_refresh) st.solver = core::with_cost_refresh(st.solver);
-    // From kAmgPresetElements tetrahedra on, the presets take the amg preconditioner
-    // (where it is built and every node is wholly free or fixed): measured at the
-    // interactive preset, the Cholesky factor's factorisations cost seconds on a
-    // 245,760-tet beam and minutes on a 257,544-tet ventricle, and the amg ran both at
-    // about twice the steps per second (docs/performance.md). solver.preconditioner overrides.
-    bool whole_nodes = true;
-    for (size_t d = 0; d + 2 < model.fixed_dofs.size(); d += 3) {
-      const int fixed = model.fixed_dofs[d] + model.fixed_dofs[d + 1] + model.fixed_dofs[d + 2];
-      whole_nodes = whole_nodes && (fixed == 0 || fixed == 3);
-    }
-    if (model.mesh.num_elements() >= kAmgPresetElements && core::has_amg() && whole_nodes)
-      st.solver.preconditioner = core::PreconditionerKind::amg;
   }
   Mode mode = Mode::dynamic;
   double until_s = 2.0;

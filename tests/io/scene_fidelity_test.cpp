@@ -2,7 +2,6 @@
 // tolerance; explicit keys override the preset; a bad value names the key and the allowed
 // values. And the scene warnings (Scene::warnings) for settings beyond the stability map.
 
-#include "core/amg_preconditioner.hpp"
 #include "io/scene.hpp"
 #include "test_support.hpp"
 
@@ -145,42 +144,4 @@ TEST(SceneFidelity, WarnsWhenTheStepIsLargerThanTheRequestedFidelitys) {
   EXPECT_TRUE(io::parse_scene(kBox + "fidelity: accurate\n", "test.yaml", "", {"solver.dt=0.001"}).warnings.empty());
   EXPECT_TRUE(io::parse_scene(kBox, "test.yaml", "", {"solver.dt=0.5"}).warnings.empty());
   EXPECT_TRUE(io::parse_scene(kBox + "fidelity: interactive\n", "test.yaml").warnings.empty());
-}
-
-// From 50,000 tetrahedra on the presets take the amg preconditioner (where AMGCL is
-// built and every node is wholly free or fixed); smaller meshes, scenes without a preset
-// and an explicit solver.preconditioner keep theirs.
-TEST(SceneFidelity, LargeMeshesTakeTheAmgPreconditioner) {
-  using fiberfem::core::PreconditionerKind;
-  // 60,000 tets: the interactive preset halves the resolution (mesh.refine 0.5).
-  const std::vector<std::string> large{"mesh.cells=[200, 20, 20]"};
-  const io::Scene big = io::parse_scene(kBox + "fidelity: interactive\n", "test.yaml", "", large);
-  ASSERT_EQ(big.model.mesh.num_elements(), 60000);
-  EXPECT_EQ(big.settings.solver.preconditioner,
-            fiberfem::core::has_amg() ? PreconditionerKind::amg : PreconditionerKind::cholesky);
-  const io::Scene no_preset = io::parse_scene(kBox, "test.yaml", "", {"mesh.cells=[100, 10, 10]"});
-  ASSERT_EQ(no_preset.model.mesh.num_elements(), 60000);
-  EXPECT_EQ(no_preset.settings.solver.preconditioner, PreconditionerKind::cholesky);
-  EXPECT_EQ(io::parse_scene(kBox + "fidelity: interactive\n", "test.yaml").settings.solver.preconditioner,
-            PreconditionerKind::cholesky);
-  std::vector<std::string> explicit_choice = large;
-  explicit_choice.push_back("solver.preconditioner=cholesky");
-  EXPECT_EQ(io::parse_scene(kBox + "fidelity: interactive\n", "test.yaml", "", explicit_choice).settings.solver.preconditioner,
-            PreconditionerKind::cholesky);
-  // A node with a single fixed component: no node blocks, no amg.
-  const std::string sliding = R"(
-name: sliding
-mesh:
-  generator: box
-  size: [0.1, 0.01, 0.01]
-  cells: [200, 20, 20]
-regions:
-  - material: {E: 1.0e5, nu: 0.3, density: 1000.0}
-fixed:
-  - plane: {axis: x, value: 0.0}
-    components: [x]
-solver: {mode: dynamic}
-fidelity: interactive
-)";
-  EXPECT_EQ(io::parse_scene(sliding, "test.yaml").settings.solver.preconditioner, PreconditionerKind::cholesky);
 }
