@@ -145,3 +145,13 @@ TEST(SceneFidelity, WarnsWhenTheStepIsLargerThanTheRequestedFidelitys) {
   EXPECT_TRUE(io::parse_scene(kBox, "test.yaml", "", {"solver.dt=0.5"}).warnings.empty());
   EXPECT_TRUE(io::parse_scene(kBox + "fidelity: interactive\n", "test.yaml").warnings.empty());
 }
+
+// solver.preconditioner takes amg (the engine refuses it later, with a message, where it
+// was built without AMGCL); a bad value lists the three.
+TEST(SceneFidelity, PreconditionerKeyTakesAmg) {
+  const io::Scene s = io::parse_scene(kBox, "test.yaml", "", {"solver.preconditioner=amg"});
+  EXPECT_EQ(s.settings.solver.preconditioner, fiberfem::core::PreconditionerKind::amg);
+  const std::string e = expect_error(kBox, {"solver.preconditioner=multigrid"});
+  for (const char* word : {"solver.preconditioner", "cholesky", "block_jacobi", "amg"})
+    EXPECT_NE(e.find(word), std::string::npos) << word << " not in: " << e;
+}
