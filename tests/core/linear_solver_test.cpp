@@ -103,6 +103,25 @@ std::unique_ptr<core::LinearSolver> make(const core::SolverSettings& s, const co
   return solver;
 }
 
+// Q_k, a random rotation per node block, and the block-diagonal W of them (free DOFs).
+struct BlockRotations {
+  std::vector<Mat3> Q;
+  core::SparseMatrix W;
+};
+BlockRotations random_block_rotations(const std::vector<int>& starts, int num_free, unsigned seed) {
+  std::mt19937 rng(seed);
+  BlockRotations r;
+  std::vector<Eigen::Triplet<double>> w;
+  for (size_t k = 0; k + 1 < starts.size(); ++k) {
+    r.Q.push_back(random_rotation(rng));
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) w.emplace_back(starts[k] + i, starts[k] + j, r.Q.back()(i, j));
+  }
+  r.W.resize(num_free, num_free);
+  r.W.setFromTriplets(w.begin(), w.end());
+  return r;
+}
+
 }  // namespace
 
 TEST(LinearSolver, BlockJacobiPcgReachesTheRequestedTolerance) {
@@ -368,16 +387,7 @@ TEST(LinearSolver, WarpedCholeskyIsExactForRotatedMatrices) {
   Eigen::VectorXd x;
   ASSERT_EQ(solver->solve(A0, S.b, x).factorizations, 1);
 
-  std::mt19937 rng(72);
-  std::vector<Mat3> Q(nb);
-  std::vector<Eigen::Triplet<double>> w;
-  for (size_t k = 0; k < nb; ++k) {
-    Q[k] = random_rotation(rng);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) w.emplace_back(starts[k] + i, starts[k] + j, Q[k](i, j));
-  }
-  core::SparseMatrix W(S.sys.num_free(), S.sys.num_free());
-  W.setFromTriplets(w.begin(), w.end());
+  const auto [Q, W] = random_block_rotations(starts, S.sys.num_free(), 72);
   const core::SparseMatrix A1 = W * A0 * core::SparseMatrix(W.transpose());
   solver->set_block_rotations(Q);
   x.setZero();
@@ -713,16 +723,7 @@ TEST(LinearSolver, WarpedAmgIsExactForRotatedMatrices) {
   const core::SparseMatrix& A0 = S.sys.matrix();
   const std::vector<int> starts = S.sys.node_block_starts();
   const size_t nb = starts.size() - 1;
-  std::mt19937 rng(92);
-  std::vector<Mat3> Q(nb);
-  std::vector<Eigen::Triplet<double>> w;
-  for (size_t k = 0; k < nb; ++k) {
-    Q[k] = random_rotation(rng);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) w.emplace_back(starts[k] + i, starts[k] + j, Q[k](i, j));
-  }
-  core::SparseMatrix W(S.sys.num_free(), S.sys.num_free());
-  W.setFromTriplets(w.begin(), w.end());
+  const auto [Q, W] = random_block_rotations(starts, S.sys.num_free(), 92);
   const core::SparseMatrix A1 = W * A0 * core::SparseMatrix(W.transpose());
   const Eigen::VectorXd b0 = W.transpose() * S.b;
 
