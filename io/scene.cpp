@@ -56,6 +56,8 @@ class Map {
       : ctx_(ctx), node_(node), path_(std::move(path)), allowed_(std::move(allowed)) {
     if (!node.IsMap()) ctx_.fail(node, path_, "expected a mapping with keys " + join(allowed_));
     for (const auto& kv : node) {
+      // A YAML complex key (`? ...`: a mapping or list as key) is no key name.
+      if (!kv.first.IsScalar()) ctx_.fail(kv.first, path_, "a key must be a plain name, not a mapping or a list");
       const std::string key = kv.first.as<std::string>();
       if (std::find(allowed_.begin(), allowed_.end(), key) == allowed_.end())
         ctx_.fail(kv.first, sub(key), "unknown key (allowed here: " + join(allowed_) + ")");
@@ -856,6 +858,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     const YAML::Node pr = top["probes"];
     if (!pr.IsMap()) ctx.fail(pr, "probes", "expected a mapping name: [x, y, z]");
     for (const auto& kv : pr) {
+      if (!kv.first.IsScalar()) ctx.fail(kv.first, "probes", "a probe's name must be a plain name, not a mapping or a list");
       const std::string name = kv.first.as<std::string>();
       Probe p{name, vec3(ctx, kv.second, "probes." + name)};
       // The containing element (the least negative weight, within round-off of the hull).

@@ -42,7 +42,7 @@ fuzz_dir="${FIBERFEM_FUZZ_DIR:-build/fuzz}"
 cmake -S . -B "$fuzz_dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${launcher[@]}" \
   -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DFIBERFEM_NATIVE=OFF \
   -DCMAKE_CXX_FLAGS="-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined" \
-  -DFIBERFEM_FUZZ=ON >/dev/null
+  -DFIBERFEM_FUZZ=ON -DFIBERFEM_WITH_AMGCL=OFF >/dev/null  # the command fuzzer's set_solver amg is then refused with a message (the refusal path); the build skips AMGCL's templates
 ninja -C "$fuzz_dir" "${targets[@]/#/fuzz_}"
 mkdir -p "$fuzz_dir"/artifacts
 failed=()

@@ -193,6 +193,9 @@ TEST(Scene, BadInputNamesTheLineAndKeyPath) {
   expect_error("mesh: [unclosed", {"test.yaml:", "not valid YAML"});
   expect_error(replace_once(ex, "tip: [0.010, 0.0005, 1.0e-3]", "tip: [0.02, 0.0005, 1.0e-3]"), {"probes.tip", "outside the mesh"});
   expect_error("regions: []\n", {"mesh", "missing"});
+  // A YAML complex key (a mapping as key: the scene fuzzer's find) is an error, not a crash.
+  expect_error(replace_once(ex, "  dt: 0.0166667", "  ? dt: 0.0166667"), {"test.yaml:31:", "solver", "plain name"});
+  expect_error(replace_once(ex, "tip: [0.010, 0.0005, 1.0e-3]", "? [tip]: [0.010, 0.0005, 1.0e-3]"), {"probes", "plain name"});
 }
 
 TEST(Scene, LoadsFilesAndReportsUnreadableOnes) {
