@@ -17,6 +17,7 @@
 #include <sstream>
 #include <string>
 #include <tuple>
+#include <type_traits>
 #include <vector>
 
 namespace fiberfem::core {
@@ -36,6 +37,10 @@ namespace {
 using DoubleBlock = amgcl::static_matrix<double, 3, 3>;
 using FloatBlock = amgcl::static_matrix<float, 3, 3>;
 using Vec3Block = amgcl::static_matrix<double, 3, 1>;
+// apply() views an Eigen vector of 3n doubles as n of these.
+static_assert(sizeof(Vec3Block) == 3 * sizeof(double) && alignof(Vec3Block) <= alignof(double) &&
+                  std::is_standard_layout_v<Vec3Block>,
+              "amgcl::static_matrix<double, 3, 1> is not three packed doubles");
 using Backend = amgcl::backend::builtin<FloatBlock>;
 using Amg = amgcl::amg<Backend, amgcl::coarsening::as_scalar<amgcl::coarsening::smoothed_aggregation>::type,
                        amgcl::relaxation::damped_jacobi>;
@@ -109,7 +114,7 @@ AmgHierarchy::AmgHierarchy(AmgHierarchy&&) noexcept = default;
 AmgHierarchy& AmgHierarchy::operator=(AmgHierarchy&&) noexcept = default;
 bool AmgHierarchy::ok() const {
 #ifdef FIBERFEM_HAVE_AMGCL
-  return impl_->amg != nullptr;
+  return impl_ && impl_->amg != nullptr;  // (a moved-from hierarchy has no impl_)
 #else
   return false;
 #endif

@@ -1042,10 +1042,14 @@ class PcgSolver final : public LinearSolver {
     if (st.factors.size() > kSlots)
       throw std::invalid_argument("linear solver state: " + std::to_string(st.factors.size()) + " factors, at most " +
                                   std::to_string(kSlots));
-    for (const auto& f : st.factors)
+    for (const auto& f : st.factors) {
       if (f.factored && f.matrix_values.size() != pattern.nonZeros())
         throw std::invalid_argument("linear solver state: a factor's matrix has " + std::to_string(f.matrix_values.size()) +
                                     " values, the system " + std::to_string(pattern.nonZeros()));
+      if (f.factored && s_.preconditioner == PreconditionerKind::amg && f.setup_positions.size() != pattern.rows())
+        throw std::invalid_argument("linear solver state: an amg hierarchy with " + std::to_string(f.setup_positions.size()) +
+                                    " setup positions, the system " + std::to_string(pattern.rows()));
+    }
     history_ = Eigen::Map<const RowMajorMatrix>(st.history.data(), st.history_rows, st.history_cols);
     history_count_ = st.history_count;
     history_next_ = st.history_next;
@@ -1059,10 +1063,7 @@ class PcgSolver final : public LinearSolver {
         SparseMatrix A = pattern;
         Eigen::Map<Eigen::VectorXd>(A.valuePtr(), A.nonZeros()) = f.matrix_values;
         if (s_.preconditioner == PreconditionerKind::amg) {
-          if (f.setup_positions.size() != A.rows())
-            throw std::invalid_argument("linear solver state: an amg hierarchy without its " + std::to_string(A.rows()) +
-                                        " setup positions");
-          build_amg(A, f.setup_positions, *sl);
+          build_amg(A, f.setup_positions, *sl);  // (sizes checked above, before anything changed)
         } else {
           sl->factor.set_single_precision(s_.single_precision_preconditioner);
           sl->factor.factorize(A);
@@ -1099,7 +1100,10 @@ class PcgSolver final : public LinearSolver {
     if (s_.preconditioner == PreconditionerKind::amg) {
       // Rigid-body modes about the current configuration (about the rest one, 40 instead
       // of 9 iterations were measured once the beam had swung).
-      build_amg(A, positions_.size() == A.rows() ? positions_ : Eigen::VectorXd(), slot);
+      if (positions_.size() != A.rows())
+        throw std::logic_error("pcg/amg: set_block_positions was not called with the " + std::to_string(A.rows()) +
+                               " node-block positions before solve");
+      build_amg(A, positions_, slot);
     } else {
       slot.factor.set_single_precision(s_.single_precision_preconditioner);
       slot.factor.factorize(A);

@@ -26,18 +26,20 @@ enum class PreconditionerKind {
   /// between refreshes a step costs a few triangular solves. Memory: the factor.
   cholesky,
   /// Smoothed-aggregation algebraic multigrid (AMGCL; core/amg_preconditioner.hpp) of an
-  /// earlier step's matrix, one single-precision V-cycle per iteration, with the rigid-body
-  /// modes of the configuration it was built in; lagged and warped by the nodes' rotations
-  /// exactly as the cholesky factor (same refresh rules, a setup priced at
-  /// kAmgSetupIterations iterations). More iterations than the factor but each about a
-  /// third of its cost on 250,000 tets, and a setup of a fraction of a second where a
-  /// factorisation takes seconds (a beam) to minutes (a ventricle): docs/performance.md.
-  /// Needs a build with AMGCL (has_amg()) and every node wholly free or wholly fixed.
+  /// earlier step's matrix, one single-precision V-cycle per iteration (always float:
+  /// single_precision_preconditioner does not apply), with the rigid-body modes of the
+  /// configuration it was built in; lagged and warped by the nodes' rotations exactly as
+  /// the cholesky factor (same refresh rules, a setup priced at kAmgSetupIterations
+  /// iterations). At 250,000 tets: more iterations than the factor, each about a third of
+  /// its cost, a setup of 0.2-0.5 s where a factorisation takes 3-8 s, a third of the
+  /// memory; it pays where the body moves fast (docs/performance.md). Needs a build with
+  /// AMGCL (has_amg()) and every node wholly free or wholly fixed.
   amg,
 };
 const char* to_string(PreconditionerKind k);
 /// What an amg setup costs, counted in PCG iterations for the refresh budget: measured
-/// on the 245,760-tet beam, a setup takes about 200 ms and an iteration 6.2 ms.
+/// on the 245,760-tet beam's step matrix, a setup takes about 200 ms and an iteration
+/// 6.2 ms (a whole first step, with its extra iterations, up to 0.5 s).
 constexpr double kAmgSetupIterations = 32.0;
 /// "pcg" or "direct".
 const char* to_string(LinearSolverKind k);

@@ -145,9 +145,9 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
       colour_chunks(n);
     }
   }
-  // Long runs instead of chunks (LoopSchedule): 4 runs per thread, each a contiguous range
-  // of the chunk order, coloured as wholes. In a local order along the body run r shares
-  // nodes with r - 1 and r + 1 only: two colours of 2 x threads runs. Each thread walks its
+  // Long runs instead of chunks (LoopSchedule): kRuns runs, each a contiguous range of the
+  // chunk order, coloured as wholes. In a local order along the body run r shares nodes
+  // with r - 1 and r + 1 only: two colours of kRuns / 2 runs. Each thread walks its
   // runs in order, so the blocks of a node are written by its elements close together in
   // time instead of once per colour from memory (the 245,760-tet beam's element pass on one
   // thread: 85-100 ms coloured by chunks, 64-72 ms in order). An order whose runs meet in
@@ -155,7 +155,7 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   // longest side of the bounding box, one per run, each in Morton order.
   if (schedule != LoopSchedule::chunks) {
     const int num_chunks = (ne + chunk_size_ - 1) / chunk_size_;
-    const int num_runs = 4 * std::max(1, omp_get_max_threads());
+    const int num_runs = kRuns;
     const int run_chunks = std::max(1, (num_chunks + num_runs - 1) / num_runs);
     const bool large = static_cast<long>(ne) >= static_cast<long>(kRunMinElements) * num_runs;
     if (schedule == LoopSchedule::runs || (large && run_chunks > 1)) {

@@ -39,9 +39,9 @@ enum class LoopSchedule {
   /// (balanced, but a colour's chunks are spread over the whole body: on a mesh whose
   /// matrix outgrows the caches every colour streams it from memory again).
   chunks,
-  /// 4 x threads runs of consecutive chunks, coloured as wholes (two colours on a mesh
-  /// in a local order), each run one task walked in order by one thread: a node's blocks
-  /// are written by the elements around it close together in time.
+  /// kRuns runs of consecutive chunks, coloured as wholes (two colours on a mesh in a
+  /// local order), each run one task walked in order by one thread: a node's blocks are
+  /// written by the elements around it close together in time.
   runs,
 };
 
@@ -50,11 +50,14 @@ class SparseSystem {
   /// Fewest elements per run for LoopSchedule::automatic to choose runs: below it the
   /// matrix stays in cache and chunks balance better (measured: docs/performance.md).
   static constexpr int kRunMinElements = 4096;
+  /// Runs of LoopSchedule::runs: a fixed count, so that the element order (and with it
+  /// the assembly's rounding) does not depend on the thread count; 8 per colour, four per
+  /// thread on two cores.
+  static constexpr int kRuns = 16;
 
   /// @param fixed_dofs per-DOF fixed flags (3N) or empty; fixed DOFs are left out.
   /// @param chunk_size elements per chunk of the coloured loop (at least 1).
-  /// @param schedule the loop's layout on the threads (runs are sized for the OpenMP
-  ///        thread count at construction).
+  /// @param schedule the loop's layout on the threads.
   SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>& fixed_dofs,
                int chunk_size = 32, LoopSchedule schedule = LoopSchedule::automatic);
 

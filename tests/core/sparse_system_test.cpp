@@ -347,8 +347,9 @@ TEST(SparseSystem, ColouredLoopNeverRunsNeighboursConcurrently) {
   for (core::LoopSchedule schedule : {core::LoopSchedule::chunks, core::LoopSchedule::runs}) {
     const core::SparseSystem sys(mesh, {}, chunk, schedule);
     EXPECT_GE(sys.num_colours(), 2);
-    if (ne / chunk >= 8 * omp_get_max_threads())  // at least two chunks in each of the 4 x threads runs
+    if (ne / chunk >= 2 * core::SparseSystem::kRuns) {  // at least two chunks in each run
       EXPECT_EQ(sys.runs_in_runs(), schedule == core::LoopSchedule::runs) << "chunk " << chunk;
+    }
     std::atomic<long> tick{0};
     std::vector<long> begin(static_cast<size_t>(ne), -1), end(static_cast<size_t>(ne), -1);
     std::vector<std::atomic<int>> calls(static_cast<size_t>(ne));
@@ -381,10 +382,10 @@ TEST(SparseSystem, ColouredLoopNeverRunsNeighboursConcurrently) {
 }
 
 // The automatic schedule takes runs only where they pay: a mesh with at least
-// kRunMinElements per run (4 runs per thread) in a local order, including a scattered one
-// that is regrouped in Morton order first; runs colour in two colours there.
+// kRunMinElements per run in a local order, including a scattered one (re-cut into slabs);
+// runs colour in two colours there.
 TEST(SparseSystem, AutomaticScheduleTakesRunsOnLargeMeshesOnly) {
-  const int runs = 4 * omp_get_max_threads();
+  const int runs = core::SparseSystem::kRuns;
   const int cells_needed = (core::SparseSystem::kRunMinElements * runs + 5) / 6;
   const int cx = (cells_needed + 99) / 100;
   const core::TetMesh large = box({cx, 10, 10});
@@ -480,9 +481,12 @@ TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
             restrict_dense(dense_assembly(*mesh, random_block, &f_ref), free_dofs(fixed, 3 * mesh->num_nodes()));
         core::SparseSystem sys(*mesh, fixed, chunk, schedule);
         // Runs are taken whenever forced and there is more than one chunk per run.
-        if (schedule == core::LoopSchedule::runs && mesh->num_elements() / chunk >= 8 * omp_get_max_threads())
+        if (schedule == core::LoopSchedule::runs && mesh->num_elements() / chunk >= 2 * core::SparseSystem::kRuns) {
           EXPECT_TRUE(sys.runs_in_runs());
-        if (schedule == core::LoopSchedule::chunks) EXPECT_FALSE(sys.runs_in_runs());
+        }
+        if (schedule == core::LoopSchedule::chunks) {
+          EXPECT_FALSE(sys.runs_in_runs());
+        }
         auto kernel = [](const int* elems, int n, core::ElementBatch& batch) {
           for (int l = 0; l < n; ++l) {
             const Mat12 K = random_block(elems[l]);

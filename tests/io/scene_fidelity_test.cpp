@@ -2,6 +2,7 @@
 // tolerance; explicit keys override the preset; a bad value names the key and the allowed
 // values. And the scene warnings (Scene::warnings) for settings beyond the stability map.
 
+#include "core/amg_preconditioner.hpp"
 #include "io/scene.hpp"
 #include "test_support.hpp"
 
@@ -146,9 +147,13 @@ TEST(SceneFidelity, WarnsWhenTheStepIsLargerThanTheRequestedFidelitys) {
   EXPECT_TRUE(io::parse_scene(kBox + "fidelity: interactive\n", "test.yaml").warnings.empty());
 }
 
-// solver.preconditioner takes amg (the engine refuses it later, with a message, where it
-// was built without AMGCL); a bad value lists the three.
+// solver.preconditioner takes amg (a build without AMGCL refuses it with a message naming
+// AMGCL); a bad value lists the three.
 TEST(SceneFidelity, PreconditionerKeyTakesAmg) {
+  if (!fiberfem::core::has_amg()) {
+    EXPECT_NE(expect_error(kBox, {"solver.preconditioner=amg"}).find("AMGCL"), std::string::npos);
+    return;
+  }
   const io::Scene s = io::parse_scene(kBox, "test.yaml", "", {"solver.preconditioner=amg"});
   EXPECT_EQ(s.settings.solver.preconditioner, fiberfem::core::PreconditionerKind::amg);
   const std::string e = expect_error(kBox, {"solver.preconditioner=multigrid"});
