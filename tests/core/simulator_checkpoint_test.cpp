@@ -168,5 +168,35 @@ TEST(SimulatorCheckpoint, MismatchedCheckpointsAreRefusedByName) {
   EXPECT_EQ(target.step_count(), 0);
 }
 
+// An amg checkpoint whose hierarchy lacks its setup positions is refused before the
+// solver changes: the target then steps exactly as an untouched twin (a restore that
+// replaced the recycled solutions or the hierarchy before refusing would not).
+TEST(SimulatorCheckpoint, AmgCheckpointWithoutSetupPositionsIsRefusedUntouched) {
+  if (!core::has_amg()) GTEST_SKIP() << "built without AMGCL";
+  io::Scene scene = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/heart.yaml");
+  scene.settings.solver.preconditioner = core::PreconditionerKind::amg;
+  core::Simulator source(scene.model, scene.settings);
+  Trace ignored;
+  run(source, 6, ignored);
+  core::SimulatorCheckpoint c = source.checkpoint();
+  bool any = false;
+  for (auto& f : c.solver.factors)
+    if (f.factored) {
+      ASSERT_EQ(f.setup_positions.size(), 3 * static_cast<Eigen::Index>(f.at_factor.size()));
+      f.setup_positions.conservativeResize(3);
+      any = true;
+    }
+  ASSERT_TRUE(any) << "no hierarchy in the checkpoint";
+  core::Simulator target(scene.model, scene.settings), twin(scene.model, scene.settings);
+  Trace t0, w0;
+  run(target, 3, t0);
+  run(twin, 3, w0);
+  expect_invalid([&] { target.restore(c); }, {"amg", "setup positions"});
+  Trace t, w;
+  run(target, 4, t);
+  run(twin, 4, w);
+  for (size_t i = 0; i < w.x.size(); ++i) EXPECT_TRUE(t.x[i] == w.x[i]) << "step " << i;
+}
+
 }  // namespace
 }  // namespace fiberfem
