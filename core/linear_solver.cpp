@@ -992,7 +992,7 @@ class PcgSolver final : public LinearSolver {
   bool uses_block_rotations() const override { return s_.preconditioner != PreconditionerKind::block_jacobi; }
   void set_block_rotations(const std::vector<Mat3>& rotations) override { warp_.current = rotations; }
   bool uses_block_positions() const override { return s_.preconditioner == PreconditionerKind::amg; }
-  void set_block_positions(const Eigen::VectorXd& positions) override { positions_ = positions; }
+  void set_block_positions(const Eigen::VectorXd& positions) override { positions_ = &positions; }
   void invalidate() override {
     for (auto& sl : slots_) sl->stale = true;
   }
@@ -1100,10 +1100,10 @@ class PcgSolver final : public LinearSolver {
     if (s_.preconditioner == PreconditionerKind::amg) {
       // Rigid-body modes about the current configuration (about the rest one, 40 instead
       // of 9 iterations were measured once the beam had swung).
-      if (positions_.size() != A.rows())
+      if (!positions_ || positions_->size() != A.rows())
         throw std::logic_error("pcg/amg: set_block_positions was not called with the " + std::to_string(A.rows()) +
                                " node-block positions before solve");
-      build_amg(A, positions_, slot);
+      build_amg(A, *positions_, slot);
     } else {
       slot.factor.set_single_precision(s_.single_precision_preconditioner);
       slot.factor.factorize(A);
@@ -1127,7 +1127,7 @@ class PcgSolver final : public LinearSolver {
   WarpState warp_;
   WarpCholeskyPreconditioner warp_pre_;
   SparseSystem* system_ = nullptr;
-  Eigen::VectorXd positions_;  // node-block positions of the next solve (amg)
+  const Eigen::VectorXd* positions_ = nullptr;  // node-block positions of the next solve (amg; the caller's)
   bool use_blocks_ = false;
   Eigen::VectorXd scaled_b_, first_guess_;  // solve()'s b / |b| and solve_scaled()'s x0 (kept: no allocation)
   std::vector<std::unique_ptr<FactorSlot>> slots_;

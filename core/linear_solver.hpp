@@ -156,7 +156,8 @@ class LinearSolver {
   /// preconditioner's rigid-body modes).
   virtual bool uses_block_positions() const { return false; }
   /// Current positions of the node blocks, 3 per block in block order, m; called before
-  /// `solve` when uses_block_positions().
+  /// `solve` when uses_block_positions(). The solver reads them (only when it rebuilds its
+  /// preconditioner) during the next solve, so `positions` must outlive it.
   virtual void set_block_positions(const Eigen::VectorXd& /*positions*/) {}
   /// Current rotation of each node block (same order as the blocks); called before `solve`.
   virtual void set_block_rotations(const std::vector<Mat3>& /*rotations*/) {}

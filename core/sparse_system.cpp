@@ -160,8 +160,6 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
     const bool large = static_cast<long>(ne) >= static_cast<long>(kRunMinElements) * num_runs;
     if (schedule == LoopSchedule::runs || (large && run_chunks > 1)) {
       const auto chunk_order = order_;
-      const auto chunk_colours = colour_chunks_;
-      const auto chunk_tasks = colour_tasks_;
       colour_chunks(n, run_chunks);
       if (colour_chunks_.size() > 2) {
         const auto run_order = order_;
@@ -186,9 +184,7 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
       }
       if (schedule == LoopSchedule::automatic && colour_chunks_.size() > 3) {  // chunks after all
         order_ = chunk_order;
-        colour_chunks_ = chunk_colours;
-        colour_tasks_ = chunk_tasks;
-        run_chunks_ = 1;
+        colour_chunks(n);
       }
     }
   }

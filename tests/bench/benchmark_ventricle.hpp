@@ -58,4 +58,14 @@ inline core::Model ventricle_model(const core::TetMesh& mesh, const std::vector<
   return m;
 }
 
+/// The ventricle that beats (bench_step's 250,000-tet case): helix fibers, active stress
+/// paced from the apex, mass damping.
+inline core::Model beating_ventricle(const std::array<int, 3>& resolution) {
+  const core::TetMesh mesh = ventricle_mesh(resolution);
+  VentricleTerms terms;
+  terms.fibers = terms.mass_damping = true;
+  terms.contraction = 1;
+  return ventricle_model(mesh, ventricle_fibers(mesh), terms);
+}
+
 }  // namespace fiberfem::bench

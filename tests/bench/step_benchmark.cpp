@@ -337,12 +337,8 @@ int main(int argc, char** argv) {
     const Case& c = cases[static_cast<size_t>(std::max(only_case, 0))];
     core::Model model = make_beam(size, c.fiber);
     if (ventricle.size() == 3) {
-      const core::TetMesh mesh = bench::ventricle_mesh({ventricle[0], ventricle[1], ventricle[2]});
-      bench::VentricleTerms terms;
-      terms.fibers = terms.mass_damping = true;
-      terms.contraction = 1;
-      model = bench::ventricle_model(mesh, bench::ventricle_fibers(mesh), terms);
-      std::printf("ventricle %d x %d x %d: %d tets\n", ventricle[0], ventricle[1], ventricle[2], mesh.num_elements());
+      model = bench::beating_ventricle({ventricle[0], ventricle[1], ventricle[2]});
+      std::printf("ventricle %d x %d x %d: %d tets\n", ventricle[0], ventricle[1], ventricle[2], model.mesh.num_elements());
     }
     core::Simulator sim(std::move(model), settings_for(c, tol));
     std::printf("step ms_total ms_rot ms_asm ms_solve iterations factorisations substeps attempts message\n");
@@ -470,11 +466,7 @@ int main(int argc, char** argv) {
       // ventricle (lv_ellipsoid 100 x 40 x 14, base held, helix-rule fibers, active stress
       // paced from the apex, mass damping), from rest over 60 steps (2 s, about two beats).
       if (std::find_if(sizes.begin(), sizes.end(), [](const Size& z) { return z.name == "large"; }) != sizes.end()) {
-        const core::TetMesh mesh = bench::ventricle_mesh({100, 40, 14});
-        bench::VentricleTerms terms;
-        terms.fibers = terms.mass_damping = true;
-        terms.contraction = 1;
-        const core::Model model = bench::ventricle_model(mesh, bench::ventricle_fibers(mesh), terms);
+        const core::Model model = bench::beating_ventricle({100, 40, 14});
         const Case& c = cases[6];
         const Size ventricle{"ventricle 100x40x14, 60 steps", {0, 0, 0}, 2, 60};
         for (const core::PreconditionerKind lagged : lagged_kinds) {
