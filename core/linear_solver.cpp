@@ -1,6 +1,7 @@
 #include "core/linear_solver.hpp"
 
 #include "core/amg_preconditioner.hpp"
+#include "core/parallel.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
@@ -195,7 +196,7 @@ class SinglePrecisionSupernodalSolve {
   /// x = A^-1 b with the factor of A = P^T L L^T P (x and b may not alias).
   template <class Rhs, class Dest>
   void solve(const Rhs& b, Dest& x) const {
-    if (!parallel() || omp_in_parallel() || omp_get_max_threads() < 2) {
+    if (!parallel()) {
       for (int i = 0; i < n_; ++i) w_(i) = static_cast<float>(b(perm_[static_cast<size_t>(i)]));
       const int ns = static_cast<int>(super_.size()) - 1;
       forward(0, ns - 1, 0, nullptr);
@@ -203,26 +204,26 @@ class SinglePrecisionSupernodalSolve {
       for (int i = 0; i < n_; ++i) x(perm_[static_cast<size_t>(i)]) = static_cast<double>(w_(i));
       return;
     }
-    const int ntop = static_cast<int>(top_cols_.size());
+    // Where the tree splits, the split order is followed on any number of threads (one
+    // thread walks both parts in turn), so the result does not depend on the thread count.
+    if (!threaded()) {
+      for (int i = 0; i < n_; ++i) w_(i) = static_cast<float>(b(perm_[static_cast<size_t>(i)]));
+      for (int part = 0; part < 2; ++part) forward_part(part);
+      solve_top();
+      for (int part = 0; part < 2; ++part) backward_part(part);
+      for (int i = 0; i < n_; ++i) x(perm_[static_cast<size_t>(i)]) = static_cast<double>(w_(i));
+      return;
+    }
 #pragma omp parallel
     {
       const int nt = omp_get_num_threads(), t = omp_get_thread_num();
 #pragma omp for schedule(static)
       for (int i = 0; i < n_; ++i) w_(i) = static_cast<float>(b(perm_[static_cast<size_t>(i)]));
-      for (int part = t; part < 2; part += nt) {
-        w_.segment(n_ + part * ntop, ntop).setZero();
-        for (const auto& [a, z] : ranges_[static_cast<size_t>(part)]) forward(a, z, part, target_.data());
-      }
+      for (int part = t; part < 2; part += nt) forward_part(part);
 #pragma omp barrier
 #pragma omp single
-      {
-        for (int i = 0; i < ntop; ++i) w_(top_cols_[static_cast<size_t>(i)]) += w_(n_ + i) + w_(n_ + ntop + i);
-        for (const auto& [a, z] : top_) forward(a, z, 0, nullptr);  // the others wait: scratch 0 is free
-        for (auto it = top_.rbegin(); it != top_.rend(); ++it) backward(it->first, it->second, 0);
-      }  // implicit barrier
-      for (int part = t; part < 2; part += nt)
-        for (auto it = ranges_[static_cast<size_t>(part)].rbegin(); it != ranges_[static_cast<size_t>(part)].rend(); ++it)
-          backward(it->first, it->second, part);
+      solve_top();  // the others wait: scratch 0 is free; implicit barrier
+      for (int part = t; part < 2; part += nt) backward_part(part);
 #pragma omp barrier
 #pragma omp for schedule(static)
       for (int i = 0; i < n_; ++i) x(perm_[static_cast<size_t>(i)]) = static_cast<double>(w_(i));
@@ -275,6 +276,25 @@ class SinglePrecisionSupernodalSolve {
       }
       L.topRows(sh.columns).transpose().triangularView<Eigen::Upper>().solveInPlace(ws);
     }
+  }
+  // One part of the split tree: the forward pass through its subtrees, its updates to top
+  // rows into its own copy of them (zeroed first).
+  void forward_part(int part) const {
+    const int ntop = static_cast<int>(top_cols_.size());
+    w_.segment(n_ + part * ntop, ntop).setZero();
+    for (const auto& [a, z] : ranges_[static_cast<size_t>(part)]) forward(a, z, part, target_.data());
+  }
+  // The top: both parts' copies of the top rows added (part 0's first), then the forward
+  // and backward passes through the top supernodes, with scratch 0.
+  void solve_top() const {
+    const int ntop = static_cast<int>(top_cols_.size());
+    for (int i = 0; i < ntop; ++i) w_(top_cols_[static_cast<size_t>(i)]) += w_(n_ + i) + w_(n_ + ntop + i);
+    for (const auto& [a, z] : top_) forward(a, z, 0, nullptr);
+    for (auto it = top_.rbegin(); it != top_.rend(); ++it) backward(it->first, it->second, 0);
+  }
+  void backward_part(int part) const {
+    for (auto it = ranges_[static_cast<size_t>(part)].rbegin(); it != ranges_[static_cast<size_t>(part)].rend(); ++it)
+      backward(it->first, it->second, part);
   }
   // Splits the supernodal elimination tree (postordered: a subtree is a contiguous range
   // of supernodes ending at its root) into two parts of disjoint subtrees plus the top,
@@ -634,18 +654,11 @@ class WarpCholeskyPreconditioner {
   Eigen::Index n_ = 0;
 };
 
-/// Sum of body(i) over rows 0..n-1, on the OpenMP threads when `parallel` (else on this
-/// thread: a region with `if (false)` would still allocate a team in libgomp).
+/// Sum of body(i) over rows 0..n-1, on the OpenMP threads when `parallel`, in a fixed
+/// partition (core/parallel.hpp: the same bits on any number of threads).
 template <class Body>
 double sum_rows(int n, bool parallel, Body&& body) {
-  double s = 0;
-  if (parallel) {
-#pragma omp parallel for schedule(static) reduction(+ : s)
-    for (int i = 0; i < n; ++i) s += body(i);
-  } else {
-    for (int i = 0; i < n; ++i) s += body(i);
-  }
-  return s;
+  return fixed_sum(n, parallel, std::forward<Body>(body));
 }
 
 /// Preconditioned conjugate gradients with its work vectors kept between solves and the
@@ -783,6 +796,10 @@ class PcgSolver final : public LinearSolver {
   using SmallVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 64, 1>;
   SmallMatrix G_;
   SmallVector Wb_;
+  // The projection's sums per part of the rows (fixed parts: the same bits on any thread count).
+  static constexpr int kProjectionParts = 8;
+  std::array<SmallMatrix, kProjectionParts> part_g_;
+  std::array<SmallVector, kProjectionParts> part_wb_;
   // A W, row by row, from the projection's pass, and A x0 = (A W) y for its guess: PCG's
   // first residual then needs no product with A (one of the 2 to 3 products of a step at
   // the interactive tolerance).
@@ -874,18 +891,18 @@ class PcgSolver final : public LinearSolver {
       }
     };
     if (A.nonZeros() > 20000) {
-#pragma omp parallel
-      {
-        SmallMatrix g = SmallMatrix::Zero(m, m);
-        SmallVector wb = SmallVector::Zero(m);
-        const int nt = omp_get_num_threads(), t = omp_get_thread_num();
-        accumulate(static_cast<int>(static_cast<long>(rows) * t / nt),
-                   static_cast<int>(static_cast<long>(rows) * (t + 1) / nt), g, wb);
-#pragma omp critical(fiberfem_recycled_projection)
-        {
-          G_ += g;
-          Wb_ += wb;
-        }
+      // Fixed parts (not one per thread), added in order: the same bits on any thread count.
+      parallel_for(kProjectionParts, [&](int p) {
+        SmallMatrix& g = part_g_[static_cast<size_t>(p)];
+        SmallVector& wb = part_wb_[static_cast<size_t>(p)];
+        g.setZero(m, m);
+        wb.setZero(m);
+        accumulate(static_cast<int>(static_cast<long>(rows) * p / kProjectionParts),
+                   static_cast<int>(static_cast<long>(rows) * (p + 1) / kProjectionParts), g, wb);
+      });
+      for (int p = 0; p < kProjectionParts; ++p) {
+        G_ += part_g_[static_cast<size_t>(p)];
+        Wb_ += part_wb_[static_cast<size_t>(p)];
       }
     } else {
       accumulate(0, rows, G_, Wb_);

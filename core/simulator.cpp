@@ -2,6 +2,7 @@
 
 #include "core/corotation.hpp"
 #include "core/element.hpp"
+#include "core/parallel.hpp"
 
 #include <omp.h>
 
@@ -56,18 +57,21 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
     : model_((model.validate(), std::move(model))),
       settings_((settings.validate(), settings)),
       sys_(model_.mesh, model_.fixed_dofs) {
+  // The governor's ceiling: the count OpenMP gave this process (OMP_NUM_THREADS, or every
+  // core), taken once, before any simulator here set its own.
+  static const int process_threads = std::max(1, omp_get_max_threads());
+  governor_ = ThreadGovernor(process_threads);
   if (settings_.threads > 0) omp_set_num_threads(settings_.threads);
   caches_.build(model_, /*with_stiffness=*/false);
   const int ne = model_.mesh.num_elements();
   elements_.resize(static_cast<size_t>(ne));
-#pragma omp parallel for schedule(static)
-  for (int e = 0; e < ne; ++e) {
+  parallel_for(ne, [&](int e) {
     const size_t i = static_cast<size_t>(e);
     elements_[i].Dm_inv = caches_.Dm_inv[i];
     for (int j = 0; j < 3; ++j) elements_[i].Dm.col(j) = caches_.X[i].segment<3>(3 * (j + 1)) - caches_.X[i].segment<3>(0);
     elements_[i].fiber = model_.fibers[i];
     elements_[i].volume = model_.mesh.rest_volume(e);
-  }
+  });
   for (const Material& m : model_.region_materials) region_law_.push_back(SpencerConstants::of(m));
   beta_e_.assign(static_cast<size_t>(ne), 0.0);
   if (!model_.region_damping.empty())
@@ -245,13 +249,12 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
   solver_->forget_solutions();
   // Re-seed the warm-started rotations from the new shape (exact, by SVD).
   const int ne = model_.mesh.num_elements();
-#pragma omp parallel for schedule(static)
-  for (int e = 0; e < ne; ++e) {
+  parallel_for(ne, [&](int e) {
     const size_t i = static_cast<size_t>(e);
     const Mat3 F = element_gradient(e);
     R_[i] = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
     q_[i] = Eigen::Quaterniond(R_[i]);
-  }
+  });
   rotations_current_ = false;
   assembled_ahead_ = false;
   solver_->invalidate();
@@ -305,10 +308,10 @@ int Simulator::rotate_elements(const int* elems, int n, const Mat3* F) {
 // counts inverted elements into inverted_current_ when it computes the rotations.
 double Simulator::assemble_elements(double h, double t_end_s) {
   const int ne = model_.mesh.num_elements();
-  const int nthreads = omp_get_max_threads();
-  acc_.resize(static_cast<size_t>(nthreads));  // no allocation after the first step
-  std::fill(acc_.begin(), acc_.end(), ThreadAcc{});
-  std::vector<ThreadAcc>& acc = acc_;
+  // Sums per chunk of the loop, added in chunk order below: the same bits on any thread count.
+  acc_.resize(static_cast<size_t>(sys_.num_chunks()));  // no allocation after the first step
+  std::fill(acc_.begin(), acc_.end(), ChunkAcc{});
+  std::vector<ChunkAcc>& acc = acc_;
   const Contraction& con = model_.contraction;
   if (con.enabled()) {
     // The tension at the end of the (sub)step, as backward Euler evaluates forces there,
@@ -317,12 +320,11 @@ double Simulator::assemble_elements(double h, double t_end_s) {
     const auto& regions = model_.mesh.regions();
     const bool delays = !con.element_delay_s.empty();
     const double shared = tension_table_.value(t_end);
-#pragma omp parallel for schedule(static)
-    for (int e = 0; e < ne; ++e) {
+    parallel_for(ne, [&](int e) {
       const size_t i = static_cast<size_t>(e);
       const double peak = con.region_peak_pa[static_cast<size_t>(regions[i])];
       active_[i] = peak * (delays ? tension_table_.value(t_end - con.element_delay_s[i]) : shared);
-    }
+    });
   }
   const bool rest_frame_active = con.enabled() && con.mode == ContractionMode::nodal_forces;
   f_.setZero(sys_.num_dofs());  // (assemble_batched replaces the matrix values)
@@ -340,7 +342,7 @@ double Simulator::assemble_elements(double h, double t_end_s) {
   using Lanes = double __attribute__((vector_size(W * sizeof(double))));
   sys_.assemble_batched(
       [&](const int* elems, int n, ElementBatch& batch) {
-        ThreadAcc& my = acc[static_cast<size_t>(omp_get_thread_num())];
+        ChunkAcc& my = acc[static_cast<size_t>(batch.chunk)];
         // Lanes past n repeat the last element (computed, never scattered).
         int lane_elem[W];
         for (int l = 0; l < W; ++l) lane_elem[l] = elems[std::min(l, n - 1)];
@@ -410,12 +412,12 @@ double Simulator::assemble_elements(double h, double t_end_s) {
       f_);
   if (need_rotations) {
     int inverted_sum = 0;
-    for (const ThreadAcc& a : acc) inverted_sum += a.inverted;
+    for (const ChunkAcc& a : acc) inverted_sum += a.inverted;
     inverted_current_ = inverted_sum;
   }
   rotations_current_ = true;
   double elastic = 0;
-  for (const ThreadAcc& t : acc) elastic += t.energy;
+  for (const ChunkAcc& c : acc) elastic += c.energy;
   return elastic;
 }
 
@@ -570,8 +572,7 @@ void Simulator::update_block_rotations() {
     return;
   }
   const int nbatch = (nb + 3) / 4;  // four blocks at a time (rotation_polar_batch)
-#pragma omp parallel for schedule(static)
-  for (int b = 0; b < nbatch; ++b) {
+  parallel_for(nbatch, [&](int b) {
     const int n4 = std::min(4, nb - 4 * b);
     Mat3 sum[4];
     Eigen::Quaterniond* q[4];
@@ -586,10 +587,15 @@ void Simulator::update_block_rotations() {
       R[l] = &block_R_[k];
     }
     rotation_polar_batch(sum, q, R, n4, 1e-6);
-  }
+  });
 }
 
 StepReport Simulator::step() {
+  // The thread count of this step: the user's, or the governor's (core/thread_governor.hpp).
+  // Set on every step: the count is per calling thread in OpenMP, and another simulator
+  // stepped on this thread may have set its own.
+  const int nthreads = settings_.threads > 0 ? settings_.threads : governor_.threads();
+  omp_set_num_threads(nthreads);
   const auto t0 = Clock::now();
   StepReport r;
   // Rollback copies into members sized once: a step allocates nothing in steady state.
@@ -657,21 +663,24 @@ StepReport Simulator::step() {
   r.max_speed_m_s = std::sqrt(vmax2);
   r.time_s = time_s_;
   r.time.total_s = seconds_since(t0);
+  r.threads = nthreads;
+  // Steps that did other work than the usual step (a retry; a factorisation, except with
+  // the direct solver, which factorises every step) are not compared.
+  if (settings_.threads == 0)
+    governor_.record(r.time.total_s, r.attempts == 1 && (r.solver_factorizations == 0 ||
+                                                         settings_.solver.method == LinearSolverKind::direct));
   return r;
 }
 
 Energies Simulator::energies() const {
   Energies en;
   const int ne = model_.mesh.num_elements();
-  double elastic = 0;
-#pragma omp parallel for schedule(static) reduction(+ : elastic)
-  for (int e = 0; e < ne; ++e) {
+  en.elastic_j = fixed_sum(ne, true, [&](int e) {
     const size_t i = static_cast<size_t>(e);
     const Mat3 F = element_gradient(e);
     const Mat3 R = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
-    elastic += spencer_energy(region_law_[static_cast<size_t>(model_.mesh.regions()[i])], elements_[i], R, F);
-  }
-  en.elastic_j = elastic;
+    return spencer_energy(region_law_[static_cast<size_t>(model_.mesh.regions()[i])], elements_[i], R, F);
+  });
   for (int n = 0; n < model_.mesh.num_nodes(); ++n) {
     en.kinetic_j += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
     en.gravity_j -= mass_(n) * model_.loads.gravity_m_s2.dot(x_.segment<3>(3 * n));

@@ -8,6 +8,7 @@
 #include "core/rotation.hpp"
 #include "core/sparse_system.hpp"
 #include "core/spencer_element.hpp"
+#include "core/thread_governor.hpp"
 
 #include <Eigen/Geometry>
 
@@ -38,7 +39,10 @@ struct SimulatorSettings {
   /// Convergence of the warm-started polar rotation (rotation = polar), rad, in (0, 0.1].
   /// Default 1e-9.
   double polar_tolerance_rad = 1e-9;
-  /// OpenMP threads, 0 = all cores. Default 0.
+  /// OpenMP threads of the engine, >= 0. 0 (default): chosen step by step from measured
+  /// step times, up to every core (core/thread_governor.hpp): fewer where more do not pay
+  /// (small meshes) or where another process keeps a core busy. N > 0: always N. Results do
+  /// not depend on the count (core/parallel.hpp).
   int threads = 0;
   /// @throws std::invalid_argument naming the field.
   void validate() const;
@@ -72,6 +76,7 @@ struct StepReport {
   int attempts = 1;               ///< Attempts made (1 + retries).
   int solver_iterations = 0;      ///< Summed over the accepted attempt's substeps.
   int solver_factorizations = 0;  ///< Cholesky factorisations, summed over all attempts.
+  int threads = 1;                ///< OpenMP threads the step ran on.
   double solver_residual = 0;     ///< Largest relative residual of the accepted attempt.
   double kinetic_energy_j = 0;
   double elastic_energy_j = 0;
@@ -117,8 +122,9 @@ struct SimulatorCheckpoint {
 };
 
 class Simulator {
-  // One cache line per thread for reductions inside the coloured loops.
-  struct alignas(64) ThreadAcc {
+  // One cache line per chunk of the element loop for its sums (chunks of one colour run
+  // on different threads at once).
+  struct alignas(64) ChunkAcc {
     double energy = 0;
     int inverted = 0;
   };
@@ -172,6 +178,8 @@ class Simulator {
   const SparseSystem& system() const { return sys_; }
   /// Rotation of each element at the start of the last step.
   const std::vector<Mat3>& rotations() const { return R_; }
+  /// The thread count the engine has settled on (settings().threads when that is set).
+  int threads() const { return settings_.threads > 0 ? settings_.threads : governor_.settled(); }
 
   // Changes between steps. Each rebuilds only the caches it touches and validates first.
   void set_region_material(int region, const Material& material);
@@ -255,7 +263,8 @@ class Simulator {
   double ahead_elastic_j_ = 0;
   int inverted_current_ = 0;
   double energy_floor_j_ = 0;
-  std::vector<ThreadAcc> acc_;
+  std::vector<ChunkAcc> acc_;
+  ThreadGovernor governor_;  // threads of each step when settings_.threads is 0
   Eigen::VectorXd x0_, v0_, vfree0_, vprev0_;  // state at the start of a step (rollback)
   std::vector<Eigen::Quaterniond> q0_;       // energy of a uniform strain 1e-8 (round-off scale)
 };

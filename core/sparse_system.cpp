@@ -309,12 +309,7 @@ void SparseSystem::sync_matrix() {
   const int nnz = static_cast<int>(A_.nonZeros());
   const double* b = block_values_.data();
   const int* src = csr_from_block_.data();
-  if (nnz > 20000) {  // (an `if` clause would still make a team, and allocate, in libgomp)
-#pragma omp parallel for schedule(static)
-    for (int p = 0; p < nnz; ++p) v[p] = b[src[p]];
-  } else {
-    for (int p = 0; p < nnz; ++p) v[p] = b[src[p]];
-  }
+  parallel_for(nnz, [&](int p) { v[p] = b[src[p]]; }, nnz > 20000);
   blocks_current_ = false;
 }
 
@@ -322,10 +317,10 @@ namespace {
 // Block rows [begin, end) of the symmetric block product, K right-hand sides side by side
 // (x, y: 3K values per block row, row-major). Each stored block (I, J), J > I, adds B x_J
 // to row I and B^T x_I to row J: into y when J < end (rows this call owns, or earlier
-// ones), else into `spill` (rows of a later thread), widening [spill_lo, spill_hi).
+// ones), else into `spill` (rows of a later part; its first value is row `end`'s).
 template <int K>
 void block_rows(const int* start, const int* col, const double* val, const double* x, double* y, double* spill,
-                int begin, int end, int& spill_lo, int& spill_hi) {
+                int begin, int end) {
   using B3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
   using R = Eigen::Matrix<double, 3, K, K == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
   constexpr size_t S = 3 * K;
@@ -336,70 +331,82 @@ void block_rows(const int* start, const int* col, const double* val, const doubl
       const Eigen::Map<const B3> b(val + 9 * static_cast<size_t>(k));
       const int J = col[k];
       acc.noalias() += b * Eigen::Map<const R>(x + S * static_cast<size_t>(J));
-      double* out = y;
-      if (J >= end) {
-        out = spill;
-        spill_lo = std::min(spill_lo, J);
-        spill_hi = std::max(spill_hi, J + 1);
-      }
-      Eigen::Map<R>(out + S * static_cast<size_t>(J)).noalias() += b.transpose() * xi;
+      double* out = J < end ? y + S * static_cast<size_t>(J) : spill + S * static_cast<size_t>(J - end);
+      Eigen::Map<R>(out).noalias() += b.transpose() * xi;
     }
     Eigen::Map<R>(y + S * static_cast<size_t>(I)) += acc;
   }
 }
 
-// y = A x (K columns) over the block rows, on the OpenMP threads when `parallel`: thread t
-// owns block rows [nb t / nt, nb (t + 1) / nt) of y (zeroes them, writes them), and
-// contributions to later threads' rows go to its spill vector, added by their owners after
-// a barrier and zeroed again (so the spills stay zero between calls: no full-length pass).
+// y = A x (K columns) over the block rows, in kProductParts fixed parts of the rows (not one
+// per thread, so the sums round the same on any number of threads). Part p owns block rows
+// [bounds[p], bounds[p + 1]) of y (zeroes them, writes them); its contributions to later
+// parts' rows go to its spill, which covers rows [bounds[p + 1], hi[p]) (the reach of its
+// blocks). After all parts, each part adds the earlier parts' spills over its rows, in part
+// order, and zeroes them again (so the spills stay zero between calls). Serial when not
+// `parallel` (a small matrix): one part, no spill.
 template <int K>
 void symmetric_block_product(const std::vector<int>& start_v, const std::vector<int>& col_v, const std::vector<double>& val_v,
-                             const double* x, double* y, bool parallel, std::vector<Eigen::VectorXd>& spills,
-                             std::vector<std::array<int, 2>>& ranges) {
+                             const double* x, double* y, bool parallel, SparseSystem::ProductSpills& sp) {
+  constexpr int P = SparseSystem::kProductParts;
   const int nb = static_cast<int>(start_v.size()) - 1;
-  const size_t S = 3 * K;
-  const size_t len = S * static_cast<size_t>(nb);
+  constexpr size_t S = 3 * K;
   if (!parallel) {
-    std::fill(y, y + len, 0.0);
-    int lo = nb, hi = 0;
-    block_rows<K>(start_v.data(), col_v.data(), val_v.data(), x, y, y, 0, nb, lo, hi);
+    std::fill(y, y + S * static_cast<size_t>(nb), 0.0);
+    block_rows<K>(start_v.data(), col_v.data(), val_v.data(), x, y, nullptr, 0, nb);
     return;
   }
-#pragma omp parallel
-  {
-    const int t = omp_get_thread_num(), nt = omp_get_num_threads();
-#pragma omp single
-    {
-      if (spills.size() != static_cast<size_t>(nt)) spills.resize(static_cast<size_t>(nt));
-      ranges.resize(static_cast<size_t>(nt));
-      for (Eigen::VectorXd& v : spills)
-        if (static_cast<size_t>(v.size()) != len) v.setZero(static_cast<Eigen::Index>(len));
+  if (sp.block_rows != nb) {  // the parts and the reach of their blocks (once per pattern)
+    sp.block_rows = nb;
+    for (int p = 0; p <= P; ++p) sp.bounds[static_cast<size_t>(p)] = static_cast<int>(static_cast<long>(nb) * p / P);
+    for (int p = 0; p < P; ++p) {
+      int hi = sp.bounds[static_cast<size_t>(p) + 1];
+      for (int I = sp.bounds[static_cast<size_t>(p)]; I < sp.bounds[static_cast<size_t>(p) + 1]; ++I)
+        for (int k = start_v[static_cast<size_t>(I)]; k < start_v[static_cast<size_t>(I) + 1]; ++k)
+          hi = std::max(hi, col_v[static_cast<size_t>(k)] + 1);
+      sp.hi[static_cast<size_t>(p)] = hi;
+      sp.spill[static_cast<size_t>(p)].setZero(static_cast<Eigen::Index>(S * static_cast<size_t>(hi - sp.bounds[static_cast<size_t>(p) + 1])));
     }
-    const int begin = static_cast<int>(static_cast<long>(nb) * t / nt), end = static_cast<int>(static_cast<long>(nb) * (t + 1) / nt);
+  }
+  const auto own = [&](int p) {
+    const int begin = sp.bounds[static_cast<size_t>(p)], end = sp.bounds[static_cast<size_t>(p) + 1];
     std::fill(y + S * static_cast<size_t>(begin), y + S * static_cast<size_t>(end), 0.0);
-    int lo = nb, hi = 0;
-    block_rows<K>(start_v.data(), col_v.data(), val_v.data(), x, y, spills[static_cast<size_t>(t)].data(), begin, end, lo, hi);
-    ranges[static_cast<size_t>(t)] = {lo, hi};
-#pragma omp barrier
-    for (int u = 0; u < t; ++u) {
-      const int from = std::max(ranges[static_cast<size_t>(u)][0], begin), to = std::min(ranges[static_cast<size_t>(u)][1], end);
-      double* sp = spills[static_cast<size_t>(u)].data();
-      for (size_t r = S * static_cast<size_t>(std::max(from, 0)); r < S * static_cast<size_t>(std::max(to, from)); ++r) {
-        y[r] += sp[r];
-        sp[r] = 0.0;
+    block_rows<K>(start_v.data(), col_v.data(), val_v.data(), x, y, sp.spill[static_cast<size_t>(p)].data(), begin, end);
+  };
+  const auto gather = [&](int q) {
+    const int begin = sp.bounds[static_cast<size_t>(q)], end = sp.bounds[static_cast<size_t>(q) + 1];
+    for (int u = 0; u < q; ++u) {
+      const int base = sp.bounds[static_cast<size_t>(u) + 1];
+      const int from = std::max(begin, base), to = std::min(end, sp.hi[static_cast<size_t>(u)]);
+      double* s = sp.spill[static_cast<size_t>(u)].data();
+      for (size_t r = S * static_cast<size_t>(from); r < S * static_cast<size_t>(std::max(to, from)); ++r) {
+        y[r] += s[r - S * static_cast<size_t>(base)];
+        s[r - S * static_cast<size_t>(base)] = 0.0;
       }
     }
+  };
+  if (threaded()) {
+#pragma omp parallel
+    {
+#pragma omp for schedule(static)
+      for (int p = 0; p < P; ++p) own(p);
+#pragma omp for schedule(static)
+      for (int q = 0; q < P; ++q) gather(q);
+    }
+  } else {
+    for (int p = 0; p < P; ++p) own(p);
+    for (int q = 0; q < P; ++q) gather(q);
   }
 }
 }  // namespace
 
 void SparseSystem::block_product8(const double* W, double* AW, bool parallel) const {
-  symmetric_block_product<8>(block_start_, block_col_, block_values_, W, AW, parallel, thread_aw_, spill_ranges_);
+  symmetric_block_product<8>(block_start_, block_col_, block_values_, W, AW, parallel, spills8_);
 }
 
 double SparseSystem::block_product(const Eigen::VectorXd& x, Eigen::VectorXd& y, bool parallel) const {
   y.resize(num_free_);
-  symmetric_block_product<1>(block_start_, block_col_, block_values_, x.data(), y.data(), parallel, thread_y_, spill_ranges_);
+  symmetric_block_product<1>(block_start_, block_col_, block_values_, x.data(), y.data(), parallel, spills1_);
   return x.dot(y);
 }
 

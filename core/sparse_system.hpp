@@ -4,6 +4,7 @@
 /// neighbouring elements coloured so that no two chunks of a colour share a node.
 
 #include "core/mesh.hpp"
+#include "core/parallel.hpp"
 
 #include <Eigen/SparseCore>
 
@@ -24,6 +25,9 @@ using SparseMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 /// entry (i, j) of a block at upper[9 k + 3 i + j][lane]; and each element's forces.
 struct ElementBatch {
   static constexpr int kWidth = 4;
+  /// The chunk these elements belong to (SparseSystem::num_chunks()): per-chunk sums,
+  /// added in chunk order afterwards, round the same on any number of threads.
+  int chunk = 0;
   alignas(64) double upper[90][kWidth];
   Eigen::Matrix<double, 12, 1> force[kWidth];
   /// Index of block (a, b), b >= a, in the order above.
@@ -78,6 +82,8 @@ class SparseSystem {
   int num_colours() const { return static_cast<int>(colour_chunks_.size()); }
   /// Whether the loop runs in long runs of chunks (LoopSchedule::runs) rather than chunks.
   bool runs_in_runs() const { return run_chunks_ > 1; }
+  /// Chunks of the element loop (ElementBatch::chunk is below this).
+  int num_chunks() const { return (static_cast<int>(tets_.size()) + chunk_size_ - 1) / chunk_size_; }
 
   /// Zeros the matrix values (pattern kept).
   void zero_matrix();
@@ -134,6 +140,16 @@ class SparseSystem {
   double block_product(const Eigen::VectorXd& x, Eigen::VectorXd& y, bool parallel) const;
   /// AW = A W for an n x 8 row-major W (the PCG's recycled solutions), from the blocks.
   void block_product8(const double* W, double* AW, bool parallel) const;
+  /// Parts of the rows a threaded block product is split into (the most threads it uses);
+  /// fixed, so the product rounds the same on any number of threads.
+  static constexpr int kProductParts = 8;
+  /// A threaded block product's parts and their spills (see sparse_system.cpp).
+  struct ProductSpills {
+    int block_rows = -1;  // the pattern's block rows these were laid out for
+    std::array<int, kProductParts + 1> bounds{};
+    std::array<int, kProductParts> hi{};
+    std::array<Eigen::VectorXd, kProductParts> spill;  // zero between products
+  };
 
   /// Same chunked, coloured loop without a matrix: `kernel(e)` for each element; safe to
   /// write per-node data of the element's nodes.
@@ -170,8 +186,7 @@ class SparseSystem {
   std::vector<int> element_blocks_;              // 10 per element: 2 * block + transposed, or -1
   std::vector<int> csr_from_block_;              // per CSR value: its index in block_values_
   std::vector<std::pair<int, int>> block_zero_ranges_;  // as zero_ranges_, in block_values_
-  mutable std::vector<Eigen::VectorXd> thread_y_, thread_aw_;  // per-thread spills (zero between products)
-  mutable std::vector<std::array<int, 2>> spill_ranges_;        // per thread: block rows its spill touched
+  mutable ProductSpills spills1_, spills8_;  // of block_product and block_product8
   SparseMatrix A_;
   std::vector<int> diag_;
   // Where each element's entries go. An element whose 12 DOFs are all free (nearly all)
@@ -197,12 +212,18 @@ void SparseSystem::for_each_chunk_coloured(ChunkKernel&& kernel) const {
     const std::vector<int>& chunks = colour_chunks_[c];
     const std::vector<int>& tasks = colour_tasks_[c];
     const int nt = static_cast<int>(tasks.size()) - 1;
-#pragma omp parallel for schedule(dynamic, 1)
-    for (int t = 0; t < nt; ++t)
+    const auto task = [&](int t) {
       for (int ci = tasks[static_cast<size_t>(t)]; ci < tasks[static_cast<size_t>(t) + 1]; ++ci) {
         const int begin = chunks[static_cast<size_t>(ci)] * chunk_size_;
         kernel(begin, std::min(begin + chunk_size_, ne));
       }
+    };
+    if (threaded()) {
+#pragma omp parallel for schedule(dynamic, 1)
+      for (int t = 0; t < nt; ++t) task(t);
+    } else {
+      for (int t = 0; t < nt; ++t) task(t);
+    }
   }
 }
 
@@ -226,6 +247,7 @@ void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_ful
         std::fill((blocks ? bvals : values) + first, (blocks ? bvals : values) + last, 0.0);
       }
       ElementBatch batch;
+      batch.chunk = static_cast<int>(chunk);
       for (int k0 = begin; k0 < end; k0 += W) {
         const int n = std::min(W, end - k0);
         const int* elems = &order_[static_cast<size_t>(k0)];

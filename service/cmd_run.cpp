@@ -135,7 +135,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
   run->add_option("--tolerance", a->tolerance, "PCG relative tolerance (solver.tolerance)")->check(CLI::Range(1e-14, 0.5));
   run->add_option("--rotation", a->rotation, "polar | svd (solver.rotation)")->check(CLI::IsMember({"svd", "polar"}));
   run->add_option("--max-energy-gain", a->max_energy_gain, "Energy check per step, relative; inf: off (solver.max_energy_gain)");
-  run->add_option("--threads", a->threads, "OpenMP threads, 0: all cores (solver.threads)")->check(CLI::Range(0, 1024));
+  run->add_option("--threads", a->threads, "OpenMP threads, 0: chosen step by step from measured step times, up to all cores (solver.threads)")->check(CLI::Range(0, 1024));
   run->add_option("--cells", a->cells, "Box cells along x y z (mesh.cells)")->expected(3)->check(CLI::Range(1, 2000));
   // Recording (docs/archive.md); each also a key of the scene's `archive` mapping.
   run->add_option("--archive", a->archive, "Record the run into this HDF5 archive (archive.path)");

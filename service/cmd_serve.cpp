@@ -76,7 +76,7 @@ void add_serve_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--builtin", a->builtin, "Built-in scene when no file is given: heart | cantilever")->capture_default_str();
   cmd->add_option("--set", a->overrides, "Override a scene key: key.path=value (repeatable)");
   cmd->add_option("--run-id", a->o.run_id, "Run id (the key of every sample); default <scene>-<host>-<pid>");
-  cmd->add_option("--threads", a->threads, "OpenMP threads of the engine, 0: all cores (solver.threads); 1 keeps a shared machine's other work from stalling the step")
+  cmd->add_option("--threads", a->threads, "OpenMP threads of the engine, 0: chosen step by step from measured step times, up to all cores, fewer beside busy cores (solver.threads)")
       ->check(CLI::Range(0, 1024));
   cmd->add_flag("--fast", a->fast, "Step as fast as possible instead of in real time");
   cmd->add_option("--real-time-factor", a->o.real_time_factor, "Simulated seconds per wall second in real-time mode")

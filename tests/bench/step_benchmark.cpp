@@ -254,7 +254,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--dt", g_dt, "Time step, s (the fidelity presets: interactive 1/30, balanced 1/60, accurate 1/120)")
       ->capture_default_str();
-  app.add_option("--threads", threads, "OpenMP threads (0 = all cores)")->capture_default_str();
+  app.add_option("--threads", threads, "OpenMP threads (0 = chosen by the engine from measured step times, up to all cores)")->capture_default_str();
   app.add_option("--sizes", only, "Subset of sizes: small medium large");
   int only_case = -1;
   app.add_option("--case", only_case, "Run only this row of each size (0-based; for profiling)");

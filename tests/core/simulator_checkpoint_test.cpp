@@ -6,6 +6,7 @@
 #include "core/amg_preconditioner.hpp"
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
+#include "step_trace.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -17,23 +18,9 @@ namespace {
 
 using testing::expect_invalid;
 
-struct Trace {
-  std::vector<Eigen::VectorXd> x, v;
-  std::vector<int> iterations, factorizations;
-  std::vector<double> times;
-};
+using Trace = testing::StepTrace;
 
-void run(core::Simulator& sim, int steps, Trace& t) {
-  for (int i = 0; i < steps; ++i) {
-    const core::StepReport r = sim.step();
-    ASSERT_NE(r.status, core::StepStatus::failed) << r.message;
-    t.x.emplace_back(Eigen::Map<const Eigen::VectorXd>(sim.positions().data(), sim.positions().size()));
-    t.v.emplace_back(Eigen::Map<const Eigen::VectorXd>(sim.velocities().data(), sim.velocities().size()));
-    t.iterations.push_back(r.solver_iterations);
-    t.factorizations.push_back(r.solver_factorizations);
-    t.times.push_back(sim.time_s());
-  }
-}
+void run(core::Simulator& sim, int steps, Trace& t) { testing::record_steps(sim, steps, t); }
 
 // `tweak` changes the scene's engine settings before both runs; `refreshes` asks that the
 // continuation refactorise at least once (the restored refresh count then matters).

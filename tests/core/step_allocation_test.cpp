@@ -118,6 +118,18 @@ TEST(StepAllocation, SteadyStepsOfThePaperBeamAllocateNothing) {
   EXPECT_EQ(t.steady_allocations, 0);
 }
 
+// On one thread (what the thread governor picks beside a busy core) the engine's loops
+// open no OpenMP region: libgomp would allocate a team of one for each.
+TEST(StepAllocation, SteadyStepsOnOneThreadAllocateNothing) {
+  core::SimulatorSettings s;
+  s.threads = 1;
+  core::Simulator sim(paper_beam(), s);
+  for (int i = 0; i < 5; ++i) sim.step();
+  const Tally t = count_steps(sim, 60);
+  EXPECT_GE(t.steady, 30);
+  EXPECT_EQ(t.steady_allocations, 0);
+}
+
 TEST(StepAllocation, SteadyStepsWithContractionAndDampingAllocateNothing) {
   core::Model m = paper_beam();
   m.contraction.region_peak_pa.assign(m.region_materials.size(), 2000.0);
@@ -153,6 +165,10 @@ TEST(StepAllocation, SteadyStepsWithAmgAllocateNothing) {
   core::SimulatorSettings s;
   s.solver.preconditioner = core::PreconditionerKind::amg;
   s.solver.refresh_iterations = 32;
+  // Two threads, fixed: AMGCL opens its own OpenMP regions, and libgomp allocates a team
+  // for every region of one thread, so a one-thread step with amg (which the thread
+  // governor may choose) allocates; the engine's own loops open no region on one thread.
+  s.threads = 2;
   core::Simulator sim(paper_beam(), s);
   for (int i = 0; i < 5; ++i) sim.step();
   const Tally t = count_steps(sim, 60);

@@ -1,0 +1,92 @@
+#include "core/thread_governor.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+namespace fiberfem::core {
+
+ThreadGovernor::ThreadGovernor(int max_threads) : max_(max_threads), current_(max_threads) {
+  if (max_threads < 1)
+    throw std::invalid_argument("thread governor: max_threads must be >= 1, got " + std::to_string(max_threads));
+}
+
+int ThreadGovernor::lower(int n) const {
+  if (n <= 1) return 1;
+  int p = 1;
+  while (2 * p < n) p *= 2;
+  return p;
+}
+
+int ThreadGovernor::higher(int n) const {
+  if (n >= max_) return max_;
+  int p = 1;
+  while (p <= n) p *= 2;
+  return std::min(p, max_);
+}
+
+void ThreadGovernor::longer_interval() { interval_ = std::min(kMaxInterval, 2 * interval_); }
+
+void ThreadGovernor::start_probe(int count) {
+  probing_ = true;
+  probe_ = count;
+  probe_sum_s_ = 0;
+  probe_filled_ = 0;
+  probe_skipped_ = 0;
+}
+
+void ThreadGovernor::end_probe(bool switch_to_probe) {
+  probing_ = false;
+  if (switch_to_probe) {
+    current_ = probe_;
+    mean_s_ = probe_sum_s_ / probe_filled_;  // the probe's steps start the new running mean
+    measured_ = probe_filled_;
+  }
+  until_probe_ = interval_;
+}
+
+void ThreadGovernor::record(double step_s, bool comparable) {
+  if (max_ == 1) return;
+  if (!comparable || !(step_s >= 0)) {
+    // A probe that meets only such steps ends undecided rather than holding its count.
+    if (probing_ && ++probe_skipped_ > 4 * kProbeSteps) end_probe(false);
+    return;
+  }
+  if (probing_) {
+    probe_sum_s_ += step_s;
+    ++probe_filled_;
+    if (probe_filled_ == 1 && step_s > kStallFactor * mean_s_) {
+      longer_interval();  // the probed count stalls at once: stop paying for it
+      end_probe(false);
+      return;
+    }
+    if (probe_filled_ < kProbeSteps) return;
+    const bool wins = probe_sum_s_ / probe_filled_ < kSwitchGain * mean_s_;
+    if (!wins) longer_interval();
+    end_probe(wins);
+    return;
+  }
+  const bool stall = measured_ >= kMinInterval / 2 && step_s > kStallFactor * mean_s_;
+  mean_s_ = measured_ == 0 ? step_s : mean_s_ + kMeanWeight * (step_s - mean_s_);
+  measured_ = std::min(measured_ + 1, kMaxInterval);
+  if (stall && current_ > 1) {
+    // Compare fewer threads with the mean this stall raised, now rather than at the next
+    // periodic probe. Leaving a count because it stalls makes the probes back to it rarer.
+    longer_interval();
+    start_probe(lower(current_));
+    return;
+  }
+  if (--until_probe_ > 0 || measured_ < kMinInterval / 2) return;
+  // Periodic probe of a neighbour on the ladder (alternating down and up where both exist).
+  const int down = lower(current_), up = higher(current_);
+  int pick = probe_down_ ? down : up;
+  if (pick == current_) pick = probe_down_ ? up : down;
+  probe_down_ = !probe_down_;
+  if (pick == current_) {
+    until_probe_ = interval_;
+    return;
+  }
+  start_probe(pick);
+}
+
+}  // namespace fiberfem::core

@@ -1,0 +1,76 @@
+#pragma once
+/// @file How many threads the next step uses when the user left it to the engine
+/// (SimulatorSettings::threads = 0): chosen from the measured wall time of recent steps,
+/// not from the core count alone.
+///
+/// Why: the threads of a parallel loop wait for each other at its end, so a thread that the
+/// operating system has descheduled (another busy process on its core) stalls the loop.
+/// Measured here beside one busy core, the paper-size beam on two threads ran most steps
+/// at full speed but stalled for 100-200 ms every few dozen steps, which cost more than the
+/// second thread gained. And below about 10,000 elements two threads can be slower than
+/// one even on a quiet machine.
+///
+/// The governor keeps a running mean of the step time of the count it runs (stalls
+/// included: a mean, not a median), probes a neighbouring count for a few steps now and
+/// then, and moves to the probe's count when its mean beats the running mean by 10 %. A
+/// step far slower than the running mean (a stall) starts a probe of fewer threads at once.
+/// Probes become rarer each time one loses and each time a count is left after a stall, so
+/// a machine that keeps stalling one count settles on the other. Switching has no other
+/// effect: the engine's sums round the same on any thread count (core/parallel.hpp).
+
+#include <array>
+
+namespace fiberfem::core {
+
+class ThreadGovernor {
+ public:
+  /// Steps of a probe; their mean decides.
+  static constexpr int kProbeSteps = 8;
+  /// Steps between probes: the first interval and the most it grows to (it doubles after a
+  /// probe that loses and after a count is left because of a stall).
+  static constexpr int kMinInterval = 16;
+  static constexpr int kMaxInterval = 1024;
+  /// A probe must beat the running mean by this factor to take over.
+  static constexpr double kSwitchGain = 0.9;
+  /// A step (or a probe's first step) this many times the running mean is a stall: it
+  /// starts a probe of fewer threads (or ends a probe at once).
+  static constexpr double kStallFactor = 3.0;
+  /// Weight of the newest step in the running mean (about the last 16 steps count).
+  static constexpr double kMeanWeight = 1.0 / 16.0;
+
+  /// @param max_threads the most threads to use (>= 1; 1 makes the governor a constant).
+  /// @throws std::invalid_argument for max_threads < 1.
+  explicit ThreadGovernor(int max_threads = 1);
+
+  /// Threads for the next step.
+  int threads() const { return probing_ ? probe_ : current_; }
+  /// The count the governor has settled on (not a probe's).
+  int settled() const { return current_; }
+  int max_threads() const { return max_; }
+  /// Reports the wall time of the step just made with threads(), seconds. `comparable`:
+  /// false for a step whose work was not that of a usual step (a factorisation, a retry
+  /// with substeps), which is left out.
+  void record(double step_s, bool comparable);
+
+ private:
+  int lower(int n) const;   // next count down the ladder 1, 2, 4, ..., max
+  int higher(int n) const;  // next count up, or max
+  void start_probe(int count);
+  void end_probe(bool switch_to_probe);
+  void longer_interval();
+
+  int max_ = 1;
+  int current_ = 1;
+  double mean_s_ = 0;  // running mean of the comparable step times at current_
+  int measured_ = 0;   // comparable steps at current_ since it became current (capped)
+  int until_probe_ = kMinInterval;
+  int interval_ = kMinInterval;
+  bool probe_down_ = true;  // which neighbour the next periodic probe tries
+  bool probing_ = false;
+  int probe_ = 1;
+  double probe_sum_s_ = 0;
+  int probe_filled_ = 0;
+  int probe_skipped_ = 0;  // steps left out during the probe
+};
+
+}  // namespace fiberfem::core

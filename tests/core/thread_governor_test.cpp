@@ -1,0 +1,178 @@
+// ThreadGovernor: the thread count it settles on, fed with synthetic step times of a
+// machine whose speed per thread count the test sets (the governor reads no clock).
+
+#include "core/thread_governor.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <functional>
+
+namespace fiberfem {
+namespace {
+
+using core::ThreadGovernor;
+
+struct Tally {
+  int steps = 0;
+  int steps_off_settled = 0;  // steps run on a count other than the one finally settled
+  int changes = 0;            // how often settled() changed
+};
+
+// Steps `n` times; `time(threads, step)` is the wall time of a step.
+Tally drive(ThreadGovernor& g, int n, const std::function<double(int, int)>& time, int first_step = 0) {
+  Tally r;
+  int settled = g.settled();
+  for (int i = 0; i < n; ++i) {
+    const int t = g.threads();
+    EXPECT_GE(t, 1);
+    EXPECT_LE(t, g.max_threads());
+    g.record(time(t, first_step + i), true);
+    if (g.settled() != settled) ++r.changes;
+    settled = g.settled();
+    ++r.steps;
+  }
+  return r;
+}
+
+// A machine where two threads take 0.7 of one thread's time, with +-5 % noise.
+double two_pay(int threads, int step) {
+  const double noise = 1.0 + 0.05 * ((step * 7919) % 11 - 5) / 5.0;
+  return (threads == 1 ? 1.0e-3 : 0.7e-3) * noise;
+}
+
+TEST(ThreadGovernor, KeepsEveryCoreWhereTheyPayAndProbesLessAndLess) {
+  ThreadGovernor g(2);
+  EXPECT_EQ(g.threads(), 2);
+  int one_thread_steps = 0;
+  for (int i = 0; i < 5000; ++i) {
+    const int t = g.threads();
+    one_thread_steps += t == 1;
+    g.record(two_pay(t, i), true);
+    EXPECT_EQ(g.settled(), 2) << "step " << i;
+  }
+  // Probes of one thread, the interval doubling from 16 to 1024 steps: at most ten probes
+  // in 5,000 steps.
+  EXPECT_GT(one_thread_steps, 0) << "never probed: a machine that changes would not be noticed";
+  EXPECT_LE(one_thread_steps, 10 * ThreadGovernor::kProbeSteps) << "probes should become rare while two threads keep winning";
+}
+
+TEST(ThreadGovernor, SettlesOnOneThreadWhereTwoDoNotPay) {
+  ThreadGovernor g(2);
+  // Two threads 1.3 times slower than one (a small mesh: the loops' fork and join cost
+  // more than the halved work).
+  const auto slow_two = [](int t, int step) { return (t == 1 ? 1.0e-3 : 1.3e-3) * (1.0 + 0.01 * (step % 3)); };
+  const Tally r = drive(g, 200, slow_two);
+  EXPECT_EQ(g.settled(), 1);
+  EXPECT_EQ(r.changes, 1);
+  // And keeps it: the later probes of two threads lose.
+  drive(g, 3000, slow_two, 200);
+  EXPECT_EQ(g.settled(), 1);
+}
+
+// One core taken by another process: steps on two threads become 100 times slower (each
+// parallel loop waits for the descheduled thread). The governor leaves two threads after
+// the first such step, and returns to them once the core is free again.
+TEST(ThreadGovernor, LeavesABusyCoreAndComesBackWhenItIsFree) {
+  ThreadGovernor g(2);
+  const auto quiet = [](int t, int) { return t == 1 ? 1.0e-3 : 0.6e-3; };
+  drive(g, 400, quiet);
+  ASSERT_EQ(g.settled(), 2);
+  const auto busy = [](int t, int) { return t == 1 ? 1.0e-3 : 60e-3; };
+  int slow_steps = 0, step = 0;
+  while (g.settled() == 2 && step < 50) {
+    slow_steps += g.threads() == 2;
+    g.record(busy(g.threads(), step++), true);
+  }
+  EXPECT_EQ(g.settled(), 1);
+  EXPECT_LE(slow_steps, 1) << "a stall should start a probe of one thread at once";
+  // While the core stays busy, the probes of two threads each cost one step (a probe step
+  // three times the running mean ends the probe) and back off.
+  int probe_steps = 0;
+  for (int i = 0; i < 4000; ++i) {
+    probe_steps += g.threads() == 2;
+    g.record(busy(g.threads(), i), true);
+    EXPECT_EQ(g.settled(), 1);
+  }
+  EXPECT_LE(probe_steps, 12) << "each probe of the busy core should be cut after its first step";
+  // The core is free again: back to two threads by the next probe (at most kMaxInterval
+  // steps plus the window).
+  const Tally back = drive(g, ThreadGovernor::kMaxInterval + 40, quiet);
+  EXPECT_EQ(g.settled(), 2);
+  EXPECT_EQ(back.changes, 1);
+}
+
+// Beside a busy core measured here, two threads ran most steps at full speed but stalled
+// for about 190 ms now and then (the median step stayed at 0.93 ms, the mean did not).
+// The governor counts the stalls (a running mean, not a median) and settles on one thread,
+// with probes of two threads ever rarer.
+TEST(ThreadGovernor, SporadicStallsOutweighTheSecondThread) {
+  ThreadGovernor g(2);
+  const auto stalling = [](int t, int step) {
+    if (t == 1) return 1.5e-3;
+    return step % 60 == 59 ? 190e-3 : 0.93e-3;
+  };
+  double wall = 0;
+  int step = 0;
+  for (; step < 20000; ++step) {
+    const double t = stalling(g.threads(), step);
+    wall += t;
+    g.record(t, true);
+  }
+  EXPECT_EQ(g.settled(), 1);
+  const double one_thread = 20000 * 1.5e-3, two_threads = 20000 * (0.93e-3 + 190e-3 / 60);
+  // The price of noticing when the core is free again: a probe of two threads every 1,024
+  // steps, which runs until its next stall (about 11 % here).
+  EXPECT_LT(wall, 1.15 * one_thread) << "two threads throughout: " << two_threads << " s";
+}
+
+// Work that grows for every count alike (a harder phase of the beat) is not a busy core:
+// after a probe or two the governor stays on the faster count.
+TEST(ThreadGovernor, WorkThatGrowsEverywhereDoesNotChangeTheCount) {
+  ThreadGovernor g(2);
+  const auto base = [](int t, int) { return t == 1 ? 1.0e-3 : 0.6e-3; };
+  drive(g, 200, base);
+  ASSERT_EQ(g.settled(), 2);
+  const auto harder = [](int t, int) { return 5 * (t == 1 ? 1.0e-3 : 0.6e-3); };
+  drive(g, 500, harder);
+  EXPECT_EQ(g.settled(), 2);
+}
+
+TEST(ThreadGovernor, StepsThatAreNotComparableAreLeftOut) {
+  ThreadGovernor g(2);
+  // Steps with other work (factorisations, retries) are not comparable: here they are slow
+  // on two threads only, and must not drive the governor to one thread.
+  for (int i = 0; i < 300; ++i) {
+    const int t = g.threads();
+    const bool factorises = i % 2 == 0;
+    g.record(factorises && t == 2 ? 1.0 : (t == 1 ? 1.0e-3 : 0.6e-3), !factorises);
+    EXPECT_EQ(g.settled(), 2) << "step " << i;
+  }
+  // A probe that meets only steps left out ends undecided instead of holding its count.
+  ThreadGovernor h(2);
+  drive(h, 16, [](int t, int) { return t == 1 ? 1.0e-3 : 0.6e-3; });
+  ASSERT_EQ(h.threads(), 1) << "the first probe should have started";
+  for (int i = 0; i < 4 * ThreadGovernor::kProbeSteps + 1; ++i) h.record(1.0, false);
+  EXPECT_EQ(h.threads(), 2);
+  EXPECT_EQ(h.settled(), 2);
+}
+
+TEST(ThreadGovernor, ManyCoresClimbTheLadder) {
+  ThreadGovernor g(8);
+  EXPECT_EQ(g.threads(), 8);
+  // Four threads best (say, the other four cores are busy).
+  const auto four_best = [](int t, int) { return t == 4 ? 1.0e-3 : t == 8 ? 50e-3 : 1.0e-3 * 4 / t; };
+  drive(g, 3000, four_best);
+  EXPECT_EQ(g.settled(), 4);
+}
+
+TEST(ThreadGovernor, OneCoreIsAConstant) {
+  ThreadGovernor g(1);
+  drive(g, 100, [](int, int step) { return 1e-3 * (1 + step % 5); });
+  EXPECT_EQ(g.threads(), 1);
+  EXPECT_EQ(g.settled(), 1);
+  testing::expect_invalid([] { ThreadGovernor bad(0); }, {"max_threads", "got 0"});
+}
+
+}  // namespace
+}  // namespace fiberfem
