@@ -1,6 +1,6 @@
 #include "service/run_endpoints.hpp"
 
-#include "service/command_sample.hpp"
+#include "idl/command_sample.hpp"
 
 #include <unistd.h>
 
@@ -23,26 +23,9 @@ RunEndpoints::RunEndpoints(std::string run_id)
 RunEndpoints::~RunEndpoints() { dds_wait_for_acks(ack_.get(), DDS_SECS(1)); }
 
 void RunEndpoints::publish_topology(const TopologyData& t) {
-  TopologyData b = t;  // sequences borrow these buffers while writing
-  std::vector<char*> names;
-  for (auto& n : b.region_names) names.push_back(n.data());
-  fiberfem_MeshTopology m{};
-  m.run_id = run_id_.data();
-  m.scene_name = b.scene_name.data();
-  m.scene_hash = b.scene_hash.data();
-  m.replay = b.replay;
-  m.num_nodes = static_cast<uint32_t>(b.num_nodes);
-  m.num_elements = static_cast<uint32_t>(b.num_elements);
-  m.rest_positions = dds::borrow<dds_sequence_float>(b.rest_positions);
-  m.tets = dds::borrow<dds_sequence_int32>(b.tets);
-  m.triangles = dds::borrow<dds_sequence_int32>(b.triangles);
-  m.triangle_elements = dds::borrow<dds_sequence_int32>(b.triangle_elements);
-  m.element_regions = dds::borrow<dds_sequence_int16>(b.element_regions);
-  m.region_names = dds::borrow<dds_sequence_string>(names);
-  m.fibers = dds::borrow<dds_sequence_float>(b.fibers);
-  m.state_nodes = dds::borrow<dds_sequence_int32>(b.state_nodes);
-  m.fixed_nodes = dds::borrow<dds_sequence_int32>(b.fixed_nodes);
-  topology_.write(m);
+  TopologyData mine = t;
+  mine.run_id = run_id_;
+  dds::with_sample(mine, [&](const fiberfem_MeshTopology& m) { topology_.write(m); });
 }
 
 void RunEndpoints::publish_state(unsigned long frame, double time_s, unsigned parameter_version, std::vector<float>& positions,
@@ -58,40 +41,11 @@ void RunEndpoints::publish_state(unsigned long frame, double time_s, unsigned pa
 }
 
 void RunEndpoints::publish_status(const StatusData& d) {
-  StatusData s = d;
-  fiberfem_ServiceStatus st{};
-  st.run_id = run_id_.data();
-  st.scene_name = s.scene_name.data();
-  st.host = host_.data();
-  st.pid = getpid();
-  st.state = s.state.data();
-  st.mode = s.mode.data();
-  st.replay = s.replay;
-  st.frame = s.frame;
-  st.time_s = s.time_s;
-  st.frames_per_second = s.frames_per_second;
-  st.real_time_factor = s.real_time_factor;
-  st.step_ms = s.step_ms;
-  st.rotations_ms = s.rotations_ms;
-  st.assembly_ms = s.assembly_ms;
-  st.solve_ms = s.solve_ms;
-  st.publish_ms = s.publish_ms;
-  st.record_ms = s.record_ms;
-  st.solver_iterations = s.solver_iterations;
-  st.solver_residual = s.solver_residual;
-  st.inverted_elements = s.inverted_elements;
-  st.kinetic_energy_j = s.kinetic_energy_j;
-  st.elastic_energy_j = s.elastic_energy_j;
-  st.recovered_steps = s.recovered_steps;
-  st.failed_steps = s.failed_steps;
-  st.last_message = s.last_message.data();
-  st.parameter_version = s.parameter_version;
-  st.heart_rate_bpm = s.heart_rate_bpm;
-  st.peak_tension_pa = s.peak_tension_pa;
-  st.dt_s = s.dt_s;
-  st.recording = s.recording.data();
-  st.recorded_frames = s.recorded_frames;
-  status_.write(st);
+  StatusData mine = d;
+  mine.run_id = run_id_;
+  mine.host = host_;
+  mine.pid = getpid();
+  dds::with_sample(mine, [&](const fiberfem_ServiceStatus& m) { status_.write(m); });
 }
 
 void RunEndpoints::write_ack(const std::string& command_id, const std::string& client_id, const Answer& a) {
@@ -125,9 +79,9 @@ int RunEndpoints::handle_commands(const std::function<CommandReply(const std::st
     // A malformed sample is refused here, unseen by the run (and so not recorded).
     CommandReply r;
     try {
-      const DecodedCommand d = decode_command(c);
+      const dds::DecodedCommand d = dds::decode_command(c);
       r = apply(d.kind, d.args, d.command_id);
-    } catch (const CommandSampleError& e) {
+    } catch (const dds::CommandSampleError& e) {
       r = {false, e.what()};
     }
     const auto [frame, version] = stamp();

@@ -3,7 +3,8 @@
 /// writers of the topology, states, status and acknowledgements and the reader of
 /// commands, all keyed by the run id (docs/dds.md).
 
-#include "service/dds/bus.hpp"
+#include "idl/bus.hpp"
+#include "idl/records.hpp"
 
 #include <deque>
 #include <functional>
@@ -14,31 +15,10 @@
 
 namespace fiberfem::service {
 
-/// The topology of a run as published (float positions, int indices).
-struct TopologyData {
-  std::string scene_name, scene_hash;
-  bool replay = false;
-  int num_nodes = 0, num_elements = 0;
-  std::vector<float> rest_positions;  ///< 3 per node, m.
-  std::vector<int32_t> tets, triangles, triangle_elements, state_nodes, fixed_nodes;
-  std::vector<int16_t> element_regions;
-  std::vector<std::string> region_names;
-  std::vector<float> fibers;  ///< 3 per element.
-};
-
-/// The status fields a run reports (fiberfem::ServiceStatus less the run id and host).
-struct StatusData {
-  std::string scene_name, state, mode, last_message, recording;
-  bool replay = false;
-  unsigned long frame = 0;
-  double time_s = 0, frames_per_second = 0, real_time_factor = 0;
-  double step_ms = 0, rotations_ms = 0, assembly_ms = 0, solve_ms = 0, publish_ms = 0, record_ms = 0;
-  int solver_iterations = 0, inverted_elements = 0;
-  double solver_residual = 0, kinetic_energy_j = 0, elastic_energy_j = 0;
-  unsigned recovered_steps = 0, failed_steps = 0, parameter_version = 0;
-  double heart_rate_bpm = 0, peak_tension_pa = 0, dt_s = 0;
-  unsigned long recorded_frames = 0;
-};
+/// The topology and status records a run publishes (idl/records.hpp); the endpoints fill
+/// their run id (and the status's host and pid).
+using TopologyData = dds::Topology;
+using StatusData = dds::Status;
 
 /// The answer to one command.
 struct CommandReply {

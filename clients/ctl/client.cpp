@@ -19,39 +19,6 @@ std::vector<V> copy(const Seq& s) {
   return std::vector<V>(s._buffer, s._buffer + s._length);
 }
 
-RunStatus to_status(const fiberfem_ServiceStatus& s) {
-  RunStatus r;
-  r.run_id = dds::str(s.run_id);
-  r.scene_name = dds::str(s.scene_name);
-  r.host = dds::str(s.host);
-  r.state = dds::str(s.state);
-  r.mode = dds::str(s.mode);
-  r.last_message = dds::str(s.last_message);
-  r.recording = dds::str(s.recording);
-  r.pid = s.pid;
-  r.replay = s.replay;
-  r.frame = s.frame;
-  r.time_s = s.time_s;
-  r.frames_per_second = s.frames_per_second;
-  r.real_time_factor = s.real_time_factor;
-  r.step_ms = s.step_ms;
-  r.solve_ms = s.solve_ms;
-  r.publish_ms = s.publish_ms;
-  r.solver_iterations = s.solver_iterations;
-  r.inverted_elements = s.inverted_elements;
-  r.solver_residual = s.solver_residual;
-  r.kinetic_energy_j = s.kinetic_energy_j;
-  r.elastic_energy_j = s.elastic_energy_j;
-  r.recovered_steps = s.recovered_steps;
-  r.failed_steps = s.failed_steps;
-  r.parameter_version = s.parameter_version;
-  r.heart_rate_bpm = s.heart_rate_bpm;
-  r.peak_tension_pa = s.peak_tension_pa;
-  r.dt_s = s.dt_s;
-  r.recorded_frames = s.recorded_frames;
-  return r;
-}
-
 std::chrono::nanoseconds left(Clock::time_point deadline) {
   return std::max(std::chrono::nanoseconds(0), std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - Clock::now()));
 }
@@ -90,7 +57,7 @@ std::vector<std::string> Client::poll_status() {
           else if (info.instance_state == DDS_NOT_ALIVE_NO_WRITERS_INSTANCE_STATE) gone_[id] = "its status writer is gone (liveliness lost)";
           return;
         }
-        runs_[id] = to_status(s);
+        runs_[id] = dds::to_record(s);
         seen_[id] = Clock::now();
         fresh.push_back(id);
         if (runs_[id].state == "stopped") gone_[id] = "it stopped";
@@ -206,22 +173,7 @@ std::optional<Topology> Client::topology(const std::string& run_id, std::chrono:
   do {
     topology_reader_->take([&](const fiberfem_MeshTopology& t, const dds_sample_info_t&) {
       if (dds::str(t.run_id) != run_id) return;
-      Topology r;
-      r.run_id = run_id;
-      r.scene_name = dds::str(t.scene_name);
-      r.scene_hash = dds::str(t.scene_hash);
-      r.replay = t.replay;
-      r.num_nodes = t.num_nodes;
-      r.num_elements = t.num_elements;
-      r.rest_positions = copy<dds_sequence_float, float>(t.rest_positions);
-      r.fibers = copy<dds_sequence_float, float>(t.fibers);
-      r.tets = copy<dds_sequence_int32, int>(t.tets);
-      r.triangles = copy<dds_sequence_int32, int>(t.triangles);
-      r.triangle_elements = copy<dds_sequence_int32, int>(t.triangle_elements);
-      r.state_nodes = copy<dds_sequence_int32, int>(t.state_nodes);
-      r.fixed_nodes = copy<dds_sequence_int32, int>(t.fixed_nodes);
-      r.element_regions = copy<dds_sequence_int16, int>(t.element_regions);
-      for (uint32_t i = 0; i < t.region_names._length; ++i) r.region_names.push_back(dds::str(t.region_names._buffer[i]));
+      Topology r = dds::to_record(t);
       out = std::move(r);
     });
     if (out) return out;

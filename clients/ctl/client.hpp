@@ -3,7 +3,8 @@
 /// status, read topology and states, send a command and wait for its acknowledgement.
 /// The command-line client (`fiberfem ctl`) and the cycle-script player use it.
 
-#include "service/dds/bus.hpp"
+#include "idl/bus.hpp"
+#include "idl/records.hpp"
 
 #include <chrono>
 #include <map>
@@ -14,19 +15,8 @@
 
 namespace fiberfem::clients {
 
-/// The latest status of one run (the fields of fiberfem::ServiceStatus that clients show).
-struct RunStatus {
-  std::string run_id, scene_name, host, state, mode, last_message, recording;
-  int pid = 0;
-  bool replay = false;
-  unsigned long frame = 0;
-  double time_s = 0, frames_per_second = 0, real_time_factor = 0, step_ms = 0, solve_ms = 0, publish_ms = 0;
-  int solver_iterations = 0, inverted_elements = 0;
-  double solver_residual = 0, kinetic_energy_j = 0, elastic_energy_j = 0;
-  unsigned recovered_steps = 0, failed_steps = 0, parameter_version = 0;
-  double heart_rate_bpm = 0, peak_tension_pa = 0, dt_s = 0;
-  unsigned long recorded_frames = 0;
-};
+/// The latest status of one run: fiberfem::ServiceStatus as C++ values (idl/records.hpp).
+using RunStatus = dds::Status;
 
 /// One state sample, copied out of DDS.
 struct State {
@@ -39,16 +29,8 @@ struct State {
   std::vector<float> activation;  ///< Per element, 0..1.
 };
 
-/// The topology of a run, copied out of DDS.
-struct Topology {
-  std::string run_id, scene_name, scene_hash;
-  bool replay = false;
-  unsigned num_nodes = 0, num_elements = 0;
-  std::vector<float> rest_positions, fibers;
-  std::vector<int> tets, triangles, triangle_elements, state_nodes, fixed_nodes;
-  std::vector<int> element_regions;
-  std::vector<std::string> region_names;
-};
+/// The topology of a run, copied out of DDS (idl/records.hpp).
+using Topology = dds::Topology;
 
 /// The acknowledgement of a command.
 struct Ack {

@@ -2,12 +2,12 @@
 // (idl/control.idl), its string fields run_id, command_id, client_id, kind and args
 // separated by NUL bytes (a missing field is a null pointer, as a sample without it
 // would carry). The sample goes through what the service does with one it receives:
-// decode_command (service/command_sample.hpp), RunControl::apply on a small running beam
+// decode_command (idl/command_sample.hpp), RunControl::apply on a small running beam
 // (service/run_control.hpp), then a step. A refusal must name what is wrong; anything
 // else (an escaped exception, a crash, a sanitizer report, a hang) is a finding.
 
 #include "io/scene.hpp"
-#include "service/command_sample.hpp"
+#include "idl/command_sample.hpp"
 #include "service/run_control.hpp"
 
 #include <cstddef>
@@ -54,10 +54,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   char** slots[] = {&sample.run_id, &sample.command_id, &sample.client_id, &sample.kind, &sample.args};
   for (size_t k = 0; k < fields.size(); ++k) *slots[k] = fields[k].data();  // text up to its first NUL, as DDS delivers it
 
-  fiberfem::service::DecodedCommand d;
+  fiberfem::dds::DecodedCommand d;
   try {
-    d = fiberfem::service::decode_command(sample);
-  } catch (const fiberfem::service::CommandSampleError& e) {
+    d = fiberfem::dds::decode_command(sample);
+  } catch (const fiberfem::dds::CommandSampleError& e) {
     if (std::string(e.what()).find("command field '") == std::string::npos) {
       std::fprintf(stderr, "refusal without the field: %s\n", e.what());
       std::abort();

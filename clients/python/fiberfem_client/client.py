@@ -9,7 +9,7 @@
         print(st.frame, st.time_s, st.positions[0])
     ack = c.send(run, "set_contraction", {"heart_rate": 90})
 
-The topics and QoS are those of service/dds/bus.cpp; use the same CYCLONEDDS_URI as
+The topics and QoS are those of idl/bus.cpp; use the same CYCLONEDDS_URI as
 the service (configs/dds/loopback.xml on one host).
 """
 
@@ -99,7 +99,7 @@ class Client:
              for k, cls in (("topology", MeshTopology), ("state", MeshState), ("command", Command),
                             ("ack", CommandAck), ("status", ServiceStatus))}
         self._status = DataReader(self.dp, t["status"], qos=QOS["status"])
-        # Keep all: the acks of every client of a run share one instance (service/dds/bus.cpp).
+        # Keep all: the acks of every client of a run share one instance (idl/bus.cpp).
         self._ack = DataReader(self.dp, t["ack"], qos=Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepAll))
         self._state = DataReader(self.dp, t["state"], qos=QOS["state"])
         self._topology = DataReader(self.dp, t["topology"], qos=QOS["topology"])

@@ -1,6 +1,7 @@
 """The fiberfem DDS types (idl/mesh.idl, idl/control.idl, idl/status.idl) for the
 `cyclonedds` Python binding. Same names, members, order, keys and extensibility as the
-IDL: keep them in step (tests/service/serve_test.cpp checks the two talk)."""
+IDL: keep them in step (tests/idl/python_types_check.py compares them with the IDL member by
+member; tests/service/serve_test.cpp checks the two talk)."""
 
 from dataclasses import dataclass
 

@@ -8,7 +8,7 @@
 #include "clients/render/video_writer.hpp"
 #include "core/static_solver.hpp"
 #include "io/scene.hpp"
-#include "service/commands.hpp"
+#include "service/app/commands.hpp"
 #include "service/stop_signals.hpp"
 #ifdef FIBERFEM_HAVE_ARCHIVE
 #include "service/archive/archive.hpp"
@@ -325,7 +325,7 @@ int render_live(CLI::App& cmd, RenderArgs& a) {
   std::vector<core::Tet> tets(topo->num_elements);
   for (unsigned e = 0; e < topo->num_elements; ++e)
     for (int k = 0; k < 4; ++k) tets[e][static_cast<size_t>(k)] = topo->tets[4 * e + k];
-  f.mesh.emplace(rest, tets, topo->element_regions);
+  f.mesh.emplace(rest, tets, std::vector<int>(topo->element_regions.begin(), topo->element_regions.end()));
   for (unsigned e = 0; e < topo->num_elements; ++e) f.fibers.emplace_back(topo->fibers[3 * e], topo->fibers[3 * e + 1], topo->fibers[3 * e + 2]);
   const auto st = client->status(run, 10s);
   if (st && st->heart_rate_bpm > 0) {  // beats in the caption and the strip

@@ -5,7 +5,7 @@
 
 #include "clients/ctl/client.hpp"
 #include "clients/ctl/cycle.hpp"
-#include "service/commands.hpp"
+#include "service/app/commands.hpp"
 #include "service/stop_signals.hpp"
 
 #include <CLI/CLI.hpp>

@@ -11,7 +11,7 @@
 //             that took its samples late under a flood of others' would lose its own
 //   status    reliable, volatile, keep-last 1, deadline, liveliness lease
 
-#include "service/dds/bus.hpp"
+#include "idl/bus.hpp"
 
 namespace fiberfem::dds {
 namespace {

@@ -5,7 +5,7 @@
 #include "io/scene.hpp"
 #include "service/batch_run.hpp"
 #include "service/builtin_scenes.hpp"
-#include "service/commands.hpp"
+#include "service/app/commands.hpp"
 
 #include <CLI/CLI.hpp>
 

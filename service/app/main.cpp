@@ -1,8 +1,8 @@
-// The `fiberfem` command: one subcommand per job (service/commands.hpp), each in its own
+// The `fiberfem` command: one subcommand per job (service/app/commands.hpp), each in its own
 // file. `fiberfem run SCENE.yaml` runs a scene in batch (docs/options.md); `fiberfem render`
 // draws one off-screen (docs/rendering.md).
 
-#include "service/commands.hpp"
+#include "service/app/commands.hpp"
 
 #include <CLI/CLI.hpp>
 

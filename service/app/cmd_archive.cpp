@@ -2,7 +2,7 @@
 // crashed one openable by ordinary readers, export it for meshio (docs/archive.md).
 
 #include "service/archive/archive.hpp"
-#include "service/commands.hpp"
+#include "service/app/commands.hpp"
 
 #include <CLI/CLI.hpp>
 

@@ -2,7 +2,7 @@
 // a scene file it serves the embedded default heart (configs/scenes/heart.yaml).
 
 #include "service/builtin_scenes.hpp"
-#include "service/commands.hpp"
+#include "service/app/commands.hpp"
 #include "service/serve.hpp"
 
 #include <CLI/CLI.hpp>

@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace fiberfem::service {
+namespace fiberfem::dds {
 
 /// Limits on the fields of a command sample, bytes.
 inline constexpr size_t kMaxCommandIdBytes = 256;    ///< run_id, command_id, client_id.
@@ -33,4 +33,4 @@ struct DecodedCommand {
 /// @throws CommandSampleError naming the field and what is wrong.
 DecodedCommand decode_command(const fiberfem_Command& sample);
 
-}  // namespace fiberfem::service
+}  // namespace fiberfem::dds

@@ -1,7 +1,7 @@
 // `fiberfem replay RUN.h5`: an archived run republished on the service's topics
 // (docs/replay.md, docs/options.md).
 
-#include "service/commands.hpp"
+#include "service/app/commands.hpp"
 #include "service/replay.hpp"
 
 #include <CLI/CLI.hpp>

@@ -1,8 +1,8 @@
-#include "service/command_sample.hpp"
+#include "idl/command_sample.hpp"
 
 #include <cctype>
 
-namespace fiberfem::service {
+namespace fiberfem::dds {
 namespace {
 
 // Length of the UTF-8 sequence starting at s[i] (RFC 3629: no overlongs, no surrogates,
@@ -65,4 +65,4 @@ DecodedCommand decode_command(const fiberfem_Command& sample) {
   return d;
 }
 
-}  // namespace fiberfem::service
+}  // namespace fiberfem::dds

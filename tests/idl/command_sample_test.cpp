@@ -1,15 +1,15 @@
-// The command decoder (service/command_sample.hpp): each field of a fiberfem::Command
+// The command decoder (idl/command_sample.hpp): each field of a fiberfem::Command
 // sample checked, the refusal naming the field. Samples built as DDS delivers them (C
 // strings, a missing one a null pointer).
 
-#include "service/command_sample.hpp"
+#include "idl/command_sample.hpp"
 
 #include <gtest/gtest.h>
 
 #include <string>
 #include <vector>
 
-namespace fiberfem::service {
+namespace fiberfem::dds {
 namespace {
 
 struct Fields {
@@ -76,4 +76,4 @@ TEST(CommandSample, EachBadFieldIsRefusedByName) {
 }
 
 }  // namespace
-}  // namespace fiberfem::service
+}  // namespace fiberfem::dds
