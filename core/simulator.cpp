@@ -101,10 +101,10 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
     for (int e = 0; e < ne; ++e)
       for (int n : model_.mesh.tets()[static_cast<size_t>(e)]) node_elems_[static_cast<size_t>(fill[static_cast<size_t>(n)]++)] = e;
   }
-  R_.assign(static_cast<size_t>(ne), Mat3::Identity());
-  q_.assign(static_cast<size_t>(ne), Eigen::Quaterniond::Identity());
+  st_.R.assign(static_cast<size_t>(ne), Mat3::Identity());
+  st_.q.assign(static_cast<size_t>(ne), Eigen::Quaterniond::Identity());
   if (model_.contraction.enabled()) {  // per-step tensions come from the schedule
-    active_.assign(static_cast<size_t>(ne), 0.0);
+    st_.active_tension_pa.assign(static_cast<size_t>(ne), 0.0);
     tension_table_ = model_.contraction.tabulate();
   }
   reset();
@@ -115,22 +115,22 @@ void Simulator::refresh_external_forces() {
   varying_loads_.clear();
   for (const SurfaceLoad& s : model_.loads.surface_loads)
     if (s.varies()) varying_loads_.push_back(&s);
-  f_ext_ = f_ext_const_;
+  st_.f_ext = f_ext_const_;
   const Positions& rest = model_.mesh.rest_positions();
-  const bool have_state = x_.size() == rest.size();  // not yet in the constructor
+  const bool have_state = st_.x.size() == rest.size();  // not yet in the constructor
   for (const SurfaceLoad* s : varying_loads_)
     if (have_state)
-      add_surface_load_at(rest, positions(), *s, time_s_, f_ext_);
+      add_surface_load_at(rest, positions(), *s, st_.time_s, st_.f_ext);
     else
-      add_surface_load_at(rest, rest, *s, 0.0, f_ext_);
+      add_surface_load_at(rest, rest, *s, 0.0, st_.f_ext);
 }
 
 void Simulator::update_node_masses() {
   mass_ = model_.lumped_node_masses();
-  energy_floor_j_ = 0;
+  st_.energy_floor_j = 0;
   for (int e = 0; e < model_.mesh.num_elements(); ++e) {
     const Material& m = model_.region_materials[static_cast<size_t>(model_.mesh.regions()[static_cast<size_t>(e)])];
-    energy_floor_j_ += 0.5 * model_.mesh.rest_volume(e) * m.stiffness().diagonal().maxCoeff() * 1e-16;
+    st_.energy_floor_j += 0.5 * model_.mesh.rest_volume(e) * m.stiffness().diagonal().maxCoeff() * 1e-16;
   }
   mass_alpha_ = Eigen::VectorXd::Zero(model_.mesh.num_nodes());
   if (model_.region_damping.empty()) return;
@@ -144,45 +144,29 @@ void Simulator::update_node_masses() {
 
 void Simulator::reset() {
   const int n = model_.mesh.num_nodes();
-  x_ = Eigen::Map<const Eigen::VectorXd>(model_.mesh.rest_positions().data(), 3 * n);
-  v_ = Eigen::VectorXd::Zero(3 * n);
-  std::fill(R_.begin(), R_.end(), Mat3::Identity());
-  std::fill(q_.begin(), q_.end(), Eigen::Quaterniond::Identity());
-  rotations_current_ = false;
+  st_.x = Eigen::Map<const Eigen::VectorXd>(model_.mesh.rest_positions().data(), 3 * n);
+  st_.v = Eigen::VectorXd::Zero(3 * n);
+  std::fill(st_.R.begin(), st_.R.end(), Mat3::Identity());
+  std::fill(st_.q.begin(), st_.q.end(), Eigen::Quaterniond::Identity());
+  st_.rotations_current = false;
   assembled_ahead_ = false;
-  block_q_.assign(block_node_.size(), Eigen::Quaterniond::Identity());
-  block_R_.assign(block_node_.size(), Mat3::Identity());
+  st_.block_q.assign(block_node_.size(), Eigen::Quaterniond::Identity());
+  st_.block_R.assign(block_node_.size(), Mat3::Identity());
   solver_->invalidate();
   solver_->forget_solutions();
-  vfree_ = Eigen::VectorXd::Zero(sys_.num_free());
-  vfree_prev_ = vfree_;
-  time_s_ = 0;
-  steps_ = 0;
-  contraction_origin_s_ = 0;
+  st_.vfree = Eigen::VectorXd::Zero(sys_.num_free());
+  st_.vfree_prev = st_.vfree;
+  st_.time_s = 0;
+  st_.step_count = 0;
+  st_.contraction_origin_s = 0;
 }
 
 SimulatorCheckpoint Simulator::checkpoint() const {
   SimulatorCheckpoint c;
-  c.time_s = time_s_;
-  c.step_count = steps_;
+  static_cast<SimulatorState&>(c) = st_;
   c.dt_s = settings_.dt_s;
   c.num_nodes = model_.mesh.num_nodes();
   c.num_elements = model_.mesh.num_elements();
-  c.x = x_;
-  c.v = v_;
-  c.vfree = vfree_;
-  c.vfree_prev = vfree_prev_;
-  c.last_h_s = last_h_;
-  c.q = q_;
-  c.R = R_;
-  c.rotations_current = rotations_current_;
-  c.inverted_current = inverted_current_;
-  c.block_q = block_q_;
-  c.block_R = block_R_;
-  c.active_tension_pa = active_;
-  c.f_ext = f_ext_;
-  c.energy_floor_j = energy_floor_j_;
-  c.contraction_origin_s = contraction_origin_s_;
   c.solver = solver_->save_state();
   return c;
 }
@@ -199,31 +183,15 @@ void Simulator::restore(const SimulatorCheckpoint& c) {
   if (c.x.size() != n3 || c.v.size() != n3 || c.f_ext.size() != n3) fail("state vectors of the wrong size");
   if (!c.x.allFinite() || !c.v.allFinite()) fail("non-finite positions or velocities");
   if (c.vfree.size() != sys_.num_free() || c.vfree_prev.size() != sys_.num_free()) fail("free-DOF vectors of the wrong size");
-  if (c.q.size() != q_.size() || c.R.size() != R_.size()) fail("per-element rotations of the wrong size");
-  if (c.block_q.size() != block_q_.size() || c.block_R.size() != block_R_.size()) fail("node-block rotations of the wrong size");
+  if (c.q.size() != st_.q.size() || c.R.size() != st_.R.size()) fail("per-element rotations of the wrong size");
+  if (c.block_q.size() != st_.block_q.size() || c.block_R.size() != st_.block_R.size()) fail("node-block rotations of the wrong size");
   if (!(c.active_tension_pa.empty() || static_cast<int>(c.active_tension_pa.size()) == ne))
     fail("active tension of the wrong size");
   if (model_.contraction.enabled() && c.active_tension_pa.empty()) fail("no active tension for a contracting model");
   if (!(std::isfinite(c.time_s) && c.step_count >= 0)) fail("bad time or step count");
   solver_->load_state(c.solver, sys_.matrix());  // throws before anything else changes
-  time_s_ = c.time_s;
-  steps_ = c.step_count;
-  x_ = c.x;
-  v_ = c.v;
-  vfree_ = c.vfree;
-  vfree_prev_ = c.vfree_prev;
-  last_h_ = c.last_h_s;
-  q_ = c.q;
-  R_ = c.R;
-  rotations_current_ = c.rotations_current;
+  st_ = c;  // the state part (SimulatorState), whole
   assembled_ahead_ = false;  // not in the checkpoint: the next step makes its element pass
-  inverted_current_ = c.inverted_current;
-  block_q_ = c.block_q;
-  block_R_ = c.block_R;
-  active_ = c.active_tension_pa;
-  f_ext_ = c.f_ext;
-  energy_floor_j_ = c.energy_floor_j;
-  contraction_origin_s_ = c.contraction_origin_s;
 }
 
 void Simulator::apply_fixed() {
@@ -231,8 +199,8 @@ void Simulator::apply_fixed() {
   const auto& rest = model_.mesh.rest_positions();
   for (int d = 0; d < sys_.num_dofs(); ++d)
     if (model_.fixed_dofs[static_cast<size_t>(d)]) {
-      x_(d) = rest.data()[d];
-      v_(d) = 0;
+      st_.x(d) = rest.data()[d];
+      st_.v(d) = 0;
     }
 }
 
@@ -241,21 +209,21 @@ void Simulator::set_state(const Positions& x, const Positions& v) {
   if (x.cols() != n || v.cols() != n)
     throw std::invalid_argument("set_state: expected " + std::to_string(n) + " nodes");
   if (!x.allFinite() || !v.allFinite()) throw std::invalid_argument("set_state: non-finite values");
-  x_ = Eigen::Map<const Eigen::VectorXd>(x.data(), 3 * n);
-  v_ = Eigen::Map<const Eigen::VectorXd>(v.data(), 3 * n);
+  st_.x = Eigen::Map<const Eigen::VectorXd>(x.data(), 3 * n);
+  st_.v = Eigen::Map<const Eigen::VectorXd>(v.data(), 3 * n);
   apply_fixed();
-  vfree_ = sys_.restrict_to_free(v_);
-  vfree_prev_ = vfree_;
+  st_.vfree = sys_.restrict_to_free(st_.v);
+  st_.vfree_prev = st_.vfree;
   solver_->forget_solutions();
   // Re-seed the warm-started rotations from the new shape (exact, by SVD).
   const int ne = model_.mesh.num_elements();
   parallel_for(ne, [&](int e) {
     const size_t i = static_cast<size_t>(e);
     const Mat3 F = element_gradient(e);
-    R_[i] = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
-    q_[i] = Eigen::Quaterniond(R_[i]);
+    st_.R[i] = settings_.corotation ? rotation_svd(F) : Mat3::Identity();
+    st_.q[i] = Eigen::Quaterniond(st_.R[i]);
   });
-  rotations_current_ = false;
+  st_.rotations_current = false;
   assembled_ahead_ = false;
   solver_->invalidate();
 }
@@ -266,8 +234,8 @@ Mat3 Simulator::element_edges(int e) const {
   const Tet& t = model_.mesh.tets()[i];
   const Mat3& Dm = elements_[i].Dm;
   Mat3 D;
-  const Vec3 x0 = x_.segment<3>(3 * t[0]);
-  for (int j = 0; j < 3; ++j) D.col(j) = (x_.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0) - Dm.col(j);
+  const Vec3 x0 = st_.x.segment<3>(3 * t[0]);
+  for (int j = 0; j < 3; ++j) D.col(j) = (st_.x.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0) - Dm.col(j);
   return D;
 }
 
@@ -280,32 +248,32 @@ Mat3 Simulator::element_gradient(int e) const {
   return F;
 }
 
-// Rotations of elements elems[0..n-1] (n <= 4) from their F into R_ (and the warm-start
-// q_); returns how many are inverted (det F <= 0).
+// Rotations of elements elems[0..n-1] (n <= 4) from their F into st_.R (and the warm-start
+// st_.q); returns how many are inverted (det F <= 0).
 int Simulator::rotate_elements(const int* elems, int n, const Mat3* F) {
   int inverted = 0;
   for (int l = 0; l < n; ++l) inverted += F[l].determinant() <= 0 ? 1 : 0;
   if (!settings_.corotation) {
-    for (int l = 0; l < n; ++l) R_[static_cast<size_t>(elems[l])] = Mat3::Identity();
+    for (int l = 0; l < n; ++l) st_.R[static_cast<size_t>(elems[l])] = Mat3::Identity();
   } else if (settings_.rotation == RotationMethod::polar) {
     Eigen::Quaterniond* q[4];
     Mat3* R[4];
     for (int l = 0; l < n; ++l) {
-      q[l] = &q_[static_cast<size_t>(elems[l])];
-      R[l] = &R_[static_cast<size_t>(elems[l])];
+      q[l] = &st_.q[static_cast<size_t>(elems[l])];
+      R[l] = &st_.R[static_cast<size_t>(elems[l])];
     }
     rotation_polar_batch(F, q, R, n, settings_.polar_tolerance_rad);
   } else {
-    for (int l = 0; l < n; ++l) R_[static_cast<size_t>(elems[l])] = rotation_svd(F[l]);
+    for (int l = 0; l < n; ++l) st_.R[static_cast<size_t>(elems[l])] = rotation_svd(F[l]);
   }
   return inverted;
 }
 
 // The element pass of a (sub)step of size h ending at time t_end_s: rotations of the
-// current positions (unless rotations_current_), the active tension at t_end_s, and the
+// current positions (unless st_.rotations_current), the active tension at t_end_s, and the
 // elastic and active forces, energy and warped blocks of every element into sys_ (without
 // the mass terms), f_ and f_active_. Returns the elastic energy of the current state;
-// counts inverted elements into inverted_current_ when it computes the rotations.
+// counts inverted elements into st_.inverted_current when it computes the rotations.
 double Simulator::assemble_elements(double h, double t_end_s) {
   const int ne = model_.mesh.num_elements();
   // Sums per chunk of the loop, added in chunk order below: the same bits on any thread count.
@@ -316,26 +284,26 @@ double Simulator::assemble_elements(double h, double t_end_s) {
   if (con.enabled()) {
     // The tension at the end of the (sub)step, as backward Euler evaluates forces there,
     // from the tabulated beat (Contraction::tabulate).
-    const double t_end = t_end_s - contraction_origin_s_;
+    const double t_end = t_end_s - st_.contraction_origin_s;
     const auto& regions = model_.mesh.regions();
     const bool delays = !con.element_delay_s.empty();
     const double shared = tension_table_.value(t_end);
     parallel_for(ne, [&](int e) {
       const size_t i = static_cast<size_t>(e);
       const double peak = con.region_peak_pa[static_cast<size_t>(regions[i])];
-      active_[i] = peak * (delays ? tension_table_.value(t_end - con.element_delay_s[i]) : shared);
+      st_.active_tension_pa[i] = peak * (delays ? tension_table_.value(t_end - con.element_delay_s[i]) : shared);
     });
   }
   const bool rest_frame_active = con.enabled() && con.mode == ContractionMode::nodal_forces;
   f_.setZero(sys_.num_dofs());  // (assemble_batched replaces the matrix values)
-  const bool active = !active_.empty();
+  const bool active = !st_.active_tension_pa.empty();
   // The active forces' own vector is needed only for the energy check's work balance.
   const bool track_active_work = active && settings_.max_energy_gain < std::numeric_limits<double>::infinity();
   if (track_active_work) f_active_.setZero(sys_.num_dofs());
   // One pass per element (rotations fused in unless the last step's check computed them):
   // F, R, the corotated strain's stress, forces, energy and the warped blocks in closed
   // form (core/spencer_element.hpp: no stored 12 x 12 K^e is read).
-  const bool need_rotations = !rotations_current_;
+  const bool need_rotations = !st_.rotations_current;
   const auto& regions = model_.mesh.regions();
   constexpr int W = ElementBatch::kWidth;
   static_assert(W <= 4, "rotate_elements takes at most four elements");
@@ -367,7 +335,7 @@ double Simulator::assemble_elements(double h, double t_end_s) {
           kv[3][l] = el.volume * law.gamma;
           kv[4][l] = el.volume * law.beta;
           cl[l] = h * beta_e_[i] + h * h;
-          const Mat3& R = R_[i];
+          const Mat3& R = st_.R[i];
           for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c) {
               Rl[3 * r + c][l] = R(r, c);
@@ -391,10 +359,10 @@ double Simulator::assemble_elements(double h, double t_end_s) {
             const size_t i = static_cast<size_t>(elems[l]);
             const SpencerElement& el = elements_[i];
             Vec12& fe = batch.force[l];
-            const Vec3 dir = rest_frame_active ? el.fiber : Vec3(R_[i] * el.fiber);
+            const Vec3 dir = rest_frame_active ? el.fiber : Vec3(st_.R[i] * el.fiber);
             const Vec3 s123 = el.Dm_inv * el.fiber;  // f . g_a, a = 1..3
             const double sa[4] = {-(s123(0) + s123(1) + s123(2)), s123(0), s123(1), s123(2)};
-            const double tv = active_[i] * el.volume;
+            const double tv = st_.active_tension_pa[i] * el.volume;
             const Tet& t = model_.mesh.tets()[i];
             for (int a = 0; a < 4; ++a) {
               const Vec3 fa = (-tv * sa[a]) * dir;
@@ -413,9 +381,9 @@ double Simulator::assemble_elements(double h, double t_end_s) {
   if (need_rotations) {
     int inverted_sum = 0;
     for (const ChunkAcc& a : acc) inverted_sum += a.inverted;
-    inverted_current_ = inverted_sum;
+    st_.inverted_current = inverted_sum;
   }
-  rotations_current_ = true;
+  st_.rotations_current = true;
   double elastic = 0;
   for (const ChunkAcc& c : acc) elastic += c.energy;
   return elastic;
@@ -424,7 +392,7 @@ double Simulator::assemble_elements(double h, double t_end_s) {
 // Linearised backward Euler in velocity form (PHYSICS.md section 5), per element e:
 //   A = sum_e [(1 + h alpha_e) M_e + (h beta_e + h^2) R K^e R^T]
 //   b = M v_n + h (f_ext + f_el(x_n) + f_active),  f_el = -R K^e (R^T x - X),
-//   f_active = -T_a R g^e (section 6); then x_{n+1} = x_n + h v_{n+1}.
+//   f_active = -T_a R g^e (section 6); then st_.x{n+1} = x_n + h st_.v{n+1}.
 bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& why) {
   const int ne = model_.mesh.num_elements();
 
@@ -433,18 +401,18 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
   // and step size (assembled_ahead_).
   auto t0 = Clock::now();
   if (!varying_loads_.empty()) {  // ramped and follower loads at the end of the (sub)step
-    f_ext_ = f_ext_const_;
-    for (const SurfaceLoad* s : varying_loads_) add_surface_load_at(model_.mesh.rest_positions(), positions(), *s, time_s_ + h, f_ext_);
+    st_.f_ext = f_ext_const_;
+    for (const SurfaceLoad* s : varying_loads_) add_surface_load_at(model_.mesh.rest_positions(), positions(), *s, st_.time_s + h, st_.f_ext);
   }
   double elastic;
   if (assembled_ahead_ && ahead_h_ == h) {
     elastic = ahead_elastic_j_;
   } else {
-    elastic = assemble_elements(h, time_s_ + h);
+    elastic = assemble_elements(h, st_.time_s + h);
   }
   assembled_ahead_ = false;
-  const bool active = !active_.empty();
-  r.inverted_elements = inverted_current_;
+  const bool active = !st_.active_tension_pa.empty();
+  r.inverted_elements = st_.inverted_current;
   const auto& fi = sys_.free_index();
   const int nn = model_.mesh.num_nodes();
   rhs_.resize(sys_.num_free());
@@ -454,48 +422,48 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
       const int k = fi[static_cast<size_t>(3 * n + c)];
       if (k < 0) continue;
       sys_.add_to_diagonal(k, md);
-      rhs_(k) = mass_(n) * v_(3 * n + c) + h * (f_ext_(3 * n + c) + f_(3 * n + c));
+      rhs_(k) = mass_(n) * st_.v(3 * n + c) + h * (st_.f_ext(3 * n + c) + f_(3 * n + c));
     }
   }
   r.elastic_energy_j = elastic;
   double kinetic = 0;
-  for (int n = 0; n < nn; ++n) kinetic += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
+  for (int n = 0; n < nn; ++n) kinetic += 0.5 * mass_(n) * st_.v.segment<3>(3 * n).squaredNorm();
   r.kinetic_energy_j = kinetic;
   // (kinetic and elastic are the energies of the state the step starts from.)
   r.time.assembly_s += seconds_since(t0);
 
   // Phase 3: solve for the new velocity.
   t0 = Clock::now();
-  // Initial guess: the last velocity extrapolated linearly (v_n + (v_n - v_{n-1})), which
+  // Initial guess: the last velocity extrapolated linearly (v_n + (v_n - st_.v{n-1})), which
   // follows smooth motion to second order; PCG ignores it when warm_start is off.
-  if (!settings_.solver.warm_start || vfree_.size() != sys_.num_free()) {
-    vfree_ = sys_.restrict_to_free(v_);
-  } else if (h == last_h_) {
-    guess_ = 2.0 * vfree_ - vfree_prev_;
-    vfree_prev_ = vfree_;
-    vfree_.swap(guess_);
+  if (!settings_.solver.warm_start || st_.vfree.size() != sys_.num_free()) {
+    st_.vfree = sys_.restrict_to_free(st_.v);
+  } else if (h == st_.last_h_s) {
+    guess_ = 2.0 * st_.vfree - st_.vfree_prev;
+    st_.vfree_prev = st_.vfree;
+    st_.vfree.swap(guess_);
   } else {
-    vfree_prev_ = vfree_;
+    st_.vfree_prev = st_.vfree;
   }
-  last_h_ = h;
+  st_.last_h_s = h;
   solver_->set_matrix_key(h);
   if (solver_->uses_block_rotations()) {
     update_block_rotations();
-    solver_->set_block_rotations(block_R_);
+    solver_->set_block_rotations(st_.block_R);
   }
   if (solver_->uses_block_positions()) {
     block_x_.resize(3 * static_cast<Eigen::Index>(block_node_.size()));
     for (size_t k = 0; k < block_node_.size(); ++k)
-      block_x_.segment<3>(3 * static_cast<Eigen::Index>(k)) = x_.segment<3>(3 * static_cast<Eigen::Index>(block_node_[k]));
+      block_x_.segment<3>(3 * static_cast<Eigen::Index>(k)) = st_.x.segment<3>(3 * static_cast<Eigen::Index>(block_node_[k]));
     solver_->set_block_positions(block_x_);
   }
   if (!solver_->reads_blocks()) sys_.sync_matrix();
-  const SolveStats st = solver_->solve(sys_.matrix(), rhs_, vfree_);
+  const SolveStats st = solver_->solve(sys_.matrix(), rhs_, st_.vfree);
   r.solver_factorizations += st.factorizations;
   r.time.solve_s += seconds_since(t0);
   r.solver_iterations += st.iterations;
   r.solver_residual = std::max(r.solver_residual, st.relative_residual);
-  if (!vfree_.allFinite()) {
+  if (!st_.vfree.allFinite()) {
     why = "linear solve produced NaN/Inf";
     return false;
   }
@@ -503,10 +471,10 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
     why = "linear solve residual " + std::to_string(st.relative_residual) + " above failure_residual";
     return false;
   }
-  sys_.scatter_free(vfree_, v_);
-  x_ += h * v_;
-  rotations_current_ = false;
-  if (!x_.allFinite()) {
+  sys_.scatter_free(st_.vfree, st_.v);
+  st_.x += h * st_.v;
+  st_.rotations_current = false;
+  if (!st_.x.allFinite()) {
     why = "positions became NaN/Inf";
     return false;
   }
@@ -521,21 +489,21 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
     double kinetic1 = 0, work = 0;
     if (guard)
       for (int n = 0; n < nn; ++n) {
-        kinetic1 += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
-        Vec3 f = f_ext_.segment<3>(3 * n);
+        kinetic1 += 0.5 * mass_(n) * st_.v.segment<3>(3 * n).squaredNorm();
+        Vec3 f = st_.f_ext.segment<3>(3 * n);
         if (active) f += f_active_.segment<3>(3 * n);
-        work += h * f.dot(v_.segment<3>(3 * n));
+        work += h * f.dot(st_.v.segment<3>(3 * n));
       }
-    const double t_next = time_s_ + h;  // the time this step ends, as the next one sees it
+    const double t_next = st_.time_s + h;  // the time this step ends, as the next one sees it
     const double elastic1 = assemble_elements(h, t_next + h);
     assembled_ahead_ = true;
     ahead_h_ = h;
     ahead_elastic_j_ = elastic1;
     r.time.assembly_s += seconds_since(t0);
-    r.inverted_elements = inverted_current_;
-    if (inverted_current_ > settings_.max_inverted_fraction * ne) {
-      why = std::to_string(inverted_current_) + " inverted elements after the step, above max_inverted_fraction";
-      rotations_current_ = false;
+    r.inverted_elements = st_.inverted_current;
+    if (st_.inverted_current > settings_.max_inverted_fraction * ne) {
+      why = std::to_string(st_.inverted_current) + " inverted elements after the step, above max_inverted_fraction";
+      st_.rotations_current = false;
       assembled_ahead_ = false;
       return false;
     }
@@ -543,22 +511,22 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
       // Backward Euler with damping dissipates: the kinetic plus elastic energy may grow
       // only by the work of the loads and of the active stress, h (f_ext + f_active) . v.
       const double gain = (kinetic1 + elastic1) - (kinetic + elastic) - work;
-      // energy_floor_j_: the energy of a uniform strain of 1e-8, below which energy
+      // st_.energy_floor_j: the energy of a uniform strain of 1e-8, below which energy
       // changes are round-off (and polar tolerance), not dynamics. At the finest substep
       // the step is accepted whatever the gain (refinement, not failure).
       const double allowed = settings_.max_energy_gain * (kinetic + elastic + std::abs(work));
-      if (gain > allowed + energy_floor_j_ && !last_chance) {
+      if (gain > allowed + st_.energy_floor_j && !last_chance) {
         char buf[160];
         std::snprintf(buf, sizeof buf, "energy grew by %.3g J without external work (%.3g of the state's energy)",
                       gain, gain / (kinetic + elastic + std::abs(work) + 1e-300));
         why = buf;
-        rotations_current_ = false;
+        st_.rotations_current = false;
         assembled_ahead_ = false;
         return false;
       }
     }
   }
-  time_s_ += h;
+  st_.time_s += h;
   return true;
 }
 
@@ -568,7 +536,7 @@ bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& 
 void Simulator::update_block_rotations() {
   const int nb = static_cast<int>(block_node_.size());
   if (!settings_.corotation) {
-    std::fill(block_R_.begin(), block_R_.end(), Mat3::Identity());
+    std::fill(st_.block_R.begin(), st_.block_R.end(), Mat3::Identity());
     return;
   }
   const int nbatch = (nb + 3) / 4;  // four blocks at a time (rotation_polar_batch)
@@ -582,9 +550,9 @@ void Simulator::update_block_rotations() {
       const int n = block_node_[k];
       sum[l].setZero();
       for (int j = node_elem_start_[static_cast<size_t>(n)]; j < node_elem_start_[static_cast<size_t>(n) + 1]; ++j)
-        sum[l] += R_[static_cast<size_t>(node_elems_[static_cast<size_t>(j)])];
-      q[l] = &block_q_[k];
-      R[l] = &block_R_[k];
+        sum[l] += st_.R[static_cast<size_t>(node_elems_[static_cast<size_t>(j)])];
+      q[l] = &st_.block_q[k];
+      R[l] = &st_.block_R[k];
     }
     rotation_polar_batch(sum, q, R, n4, 1e-6);
   });
@@ -599,15 +567,15 @@ StepReport Simulator::step() {
   const auto t0 = Clock::now();
   StepReport r;
   // Rollback copies into members sized once: a step allocates nothing in steady state.
-  x0_ = x_;
-  v0_ = v_;
-  vfree0_ = vfree_;
-  vprev0_ = vfree_prev_;
+  x0_ = st_.x;
+  v0_ = st_.v;
+  vfree0_ = st_.vfree;
+  vprev0_ = st_.vfree_prev;
   const Eigen::VectorXd &x0 = x0_, &v0 = v0_, &vfree0 = vfree0_, &vprev0 = vprev0_;
-  const double last_h0 = last_h_;
+  const double last_h0 = st_.last_h_s;
   const bool keep_q = settings_.rotation == RotationMethod::polar;
-  if (keep_q) q0_ = q_;
-  const double t_start = time_s_;
+  if (keep_q) q0_ = st_.q;
+  const double t_start = st_.time_s;
   std::string why;
   for (int level = 0; level <= settings_.max_substep_halvings; ++level) {
     const int nsub = 1 << level;
@@ -645,23 +613,23 @@ StepReport Simulator::step() {
     }
     // Roll back and retry with twice the substeps.
     r.message += (r.message.empty() ? "" : "; ") + std::string("dt/") + std::to_string(nsub) + ": " + why;
-    x_ = x0;
-    v_ = v0;
-    vfree_ = vfree0;
-    vfree_prev_ = vprev0;
-    rotations_current_ = false;
+    st_.x = x0;
+    st_.v = v0;
+    st_.vfree = vfree0;
+    st_.vfree_prev = vprev0;
+    st_.rotations_current = false;
     assembled_ahead_ = false;
-    last_h_ = last_h0;
-    if (keep_q) q_ = q0_;
-    time_s_ = t_start;
+    st_.last_h_s = last_h0;
+    if (keep_q) st_.q = q0_;
+    st_.time_s = t_start;
     r.attempts = level + 1;
     r.status = StepStatus::failed;
   }
-  if (r.status != StepStatus::failed) ++steps_;
+  if (r.status != StepStatus::failed) ++st_.step_count;
   double vmax2 = 0;
-  for (int n = 0; n < model_.mesh.num_nodes(); ++n) vmax2 = std::max(vmax2, v_.segment<3>(3 * n).squaredNorm());
+  for (int n = 0; n < model_.mesh.num_nodes(); ++n) vmax2 = std::max(vmax2, st_.v.segment<3>(3 * n).squaredNorm());
   r.max_speed_m_s = std::sqrt(vmax2);
-  r.time_s = time_s_;
+  r.time_s = st_.time_s;
   r.time.total_s = seconds_since(t0);
   r.threads = nthreads;
   // Steps that did other work than the usual step (a retry; a factorisation, except with
@@ -682,8 +650,8 @@ Energies Simulator::energies() const {
     return spencer_energy(region_law_[static_cast<size_t>(model_.mesh.regions()[i])], elements_[i], R, F);
   });
   for (int n = 0; n < model_.mesh.num_nodes(); ++n) {
-    en.kinetic_j += 0.5 * mass_(n) * v_.segment<3>(3 * n).squaredNorm();
-    en.gravity_j -= mass_(n) * model_.loads.gravity_m_s2.dot(x_.segment<3>(3 * n));
+    en.kinetic_j += 0.5 * mass_(n) * st_.v.segment<3>(3 * n).squaredNorm();
+    en.gravity_j -= mass_(n) * model_.loads.gravity_m_s2.dot(st_.x.segment<3>(3 * n));
   }
   return en;
 }
@@ -789,14 +757,14 @@ void Simulator::set_solver_settings(const SolverSettings& s) {
 
 void Simulator::set_rotation_method(RotationMethod m) {
   if (m == RotationMethod::polar && settings_.rotation != RotationMethod::polar)
-    for (size_t i = 0; i < R_.size(); ++i) q_[i] = Eigen::Quaterniond(R_[i]);
+    for (size_t i = 0; i < st_.R.size(); ++i) st_.q[i] = Eigen::Quaterniond(st_.R[i]);
   settings_.rotation = m;
-  rotations_current_ = false;
+  st_.rotations_current = false;
   assembled_ahead_ = false;
 }
 
 void Simulator::set_corotation(bool on) {
-  rotations_current_ = false;
+  st_.rotations_current = false;
   assembled_ahead_ = false;
   if (on != settings_.corotation) solver_->invalidate();
   settings_.corotation = on;
@@ -807,7 +775,7 @@ void Simulator::set_active_tension(std::vector<double> tension_pa) {
     throw std::invalid_argument("set_active_tension: the model's contraction schedule sets the tension");
   assembled_ahead_ = false;
   if (tension_pa.empty()) {
-    active_.clear();
+    st_.active_tension_pa.clear();
     return;
   }
   if (static_cast<int>(tension_pa.size()) != model_.mesh.num_elements())
@@ -816,7 +784,7 @@ void Simulator::set_active_tension(std::vector<double> tension_pa) {
   for (size_t e = 0; e < tension_pa.size(); ++e)
     if (!std::isfinite(tension_pa[e]))
       throw std::invalid_argument("set_active_tension: element " + std::to_string(e) + " is not finite");
-  active_ = std::move(tension_pa);
+  st_.active_tension_pa = std::move(tension_pa);
 }
 
 void Simulator::set_contraction(Contraction contraction) {
@@ -829,23 +797,23 @@ void Simulator::set_contraction(Contraction contraction) {
     // phase = time since the current beat began. The new origin puts the current beat
     // at the same phase, one whole new period (or more) after the origin so the table's
     // first-beat branch (no previous tail) is not taken again.
-    double origin = time_s_;
+    double origin = st_.time_s;
     if (was_on) {
-      const double since = time_s_ - contraction_origin_s_;
+      const double since = st_.time_s - st_.contraction_origin_s;
       const double old_period = model_.contraction.period_s;
       if (since >= old_period) {
         const double phase = since - std::floor(since / old_period) * old_period;
-        origin = time_s_ - phase - contraction.period_s;
+        origin = st_.time_s - phase - contraction.period_s;
       } else {
-        origin = contraction_origin_s_;  // still in the first beat
+        origin = st_.contraction_origin_s;  // still in the first beat
       }
     }
     TwitchTable table = contraction.tabulate();
     tension_table_ = std::move(table);
-    contraction_origin_s_ = origin;
-    active_.assign(static_cast<size_t>(model_.mesh.num_elements()), 0.0);
+    st_.contraction_origin_s = origin;
+    st_.active_tension_pa.assign(static_cast<size_t>(model_.mesh.num_elements()), 0.0);
   } else {
-    active_.clear();
+    st_.active_tension_pa.clear();
   }
   model_.contraction = std::move(contraction);
 }

@@ -94,15 +94,13 @@ struct Energies {
   double gravity_j = 0;  ///< -sum m g.x (relative to the origin).
 };
 
-/// Everything later steps depend on besides the model and the settings: restoring it
-/// into a Simulator built from the same model and settings continues the run
-/// bit-for-bit (Simulator::checkpoint, Simulator::restore). Plain data, no I/O.
-struct SimulatorCheckpoint {
+/// Everything later steps depend on besides the model, the settings and the solver's
+/// memory: the Simulator keeps its state in exactly this struct, so a checkpoint copies it
+/// whole and a restore assigns it whole (a new field cannot be left out of one of them).
+/// Plain data, no I/O.
+struct SimulatorState {
   double time_s = 0;                 ///< Simulation time, s.
   long step_count = 0;               ///< Accepted steps so far.
-  double dt_s = 0;                   ///< The time step when saved, s (restore checks it).
-  int num_nodes = 0;                 ///< Nodes of the model (restore checks it).
-  int num_elements = 0;              ///< Elements of the model (restore checks it).
   Eigen::VectorXd x;                 ///< Positions, 3N, m.
   Eigen::VectorXd v;                 ///< Velocities, 3N, m/s.
   Eigen::VectorXd vfree;             ///< Last solution over the free DOFs, m/s.
@@ -115,9 +113,18 @@ struct SimulatorCheckpoint {
   std::vector<Eigen::Quaterniond> block_q;  ///< Warm-start rotation per free node block.
   std::vector<Mat3> block_R;         ///< Rotation per free node block.
   std::vector<double> active_tension_pa;   ///< Per element, Pa (empty: contraction off).
-  Eigen::VectorXd f_ext;             ///< External force of the last step, 3N, N.
+  Eigen::VectorXd f_ext;             ///< External force of the current (sub)step, 3N, N.
   double energy_floor_j = 0;         ///< Round-off scale of the energy check, J.
   double contraction_origin_s = 0;   ///< Where beats are counted from (set_contraction), s.
+};
+
+/// A SimulatorState with what a restore checks it against and the linear solver's memory:
+/// restoring it into a Simulator built from the same model and settings continues the run
+/// bit-for-bit (Simulator::checkpoint, Simulator::restore).
+struct SimulatorCheckpoint : SimulatorState {
+  double dt_s = 0;                   ///< The time step when saved, s (restore checks it).
+  int num_nodes = 0;                 ///< Nodes of the model (restore checks it).
+  int num_elements = 0;              ///< Elements of the model (restore checks it).
   LinearSolverState solver;          ///< Recycled solutions and lagged factors.
 };
 
@@ -138,15 +145,15 @@ class Simulator {
   StepReport step();
 
   /// Current positions (3 x N), metres, and velocities (3 x N), m/s.
-  Eigen::Map<const Positions> positions() const { return {x_.data(), 3, model_.mesh.num_nodes()}; }
-  Eigen::Map<const Positions> velocities() const { return {v_.data(), 3, model_.mesh.num_nodes()}; }
+  Eigen::Map<const Positions> positions() const { return {st_.x.data(), 3, model_.mesh.num_nodes()}; }
+  Eigen::Map<const Positions> velocities() const { return {st_.v.data(), 3, model_.mesh.num_nodes()}; }
   /// Replaces the state (e.g. to start deformed). Fixed DOFs keep their rest position and
   /// zero velocity. @throws std::invalid_argument on size mismatch or non-finite values.
   void set_state(const Positions& x, const Positions& v);
   /// Back to rest, zero velocity, time zero.
   void reset();
-  double time_s() const { return time_s_; }
-  long step_count() const { return steps_; }
+  double time_s() const { return st_.time_s; }
+  long step_count() const { return st_.step_count; }
 
   /// The complete state between steps (see SimulatorCheckpoint). Cost: copies of the
   /// state vectors and of the lagged factors' matrices.
@@ -161,14 +168,14 @@ class Simulator {
 
   /// External force of the last step (3N, newtons): gravity, point forces and surface
   /// loads, with ramped and follower loads as that step applied them.
-  const Eigen::VectorXd& external_force() const { return f_ext_; }
+  const Eigen::VectorXd& external_force() const { return st_.f_ext; }
   /// Exact energies of the current state (one pass over the elements).
   Energies energies() const;
   /// Elements with det F <= 0 in the current state.
   int count_inverted() const;
   /// Active tension per element along its fiber, Pa, as the last step applied it (the
   /// contraction schedule or set_active_tension); empty when contraction is off.
-  const std::vector<double>& active_tension() const { return active_; }
+  const std::vector<double>& active_tension() const { return st_.active_tension_pa; }
 
   const Model& model() const { return model_; }
   const SimulatorSettings& settings() const { return settings_; }
@@ -177,7 +184,7 @@ class Simulator {
   const ElementCaches& caches() const { return caches_; }
   const SparseSystem& system() const { return sys_; }
   /// Rotation of each element at the start of the last step.
-  const std::vector<Mat3>& rotations() const { return R_; }
+  const std::vector<Mat3>& rotations() const { return st_.R; }
   /// The thread count the engine has settled on (settings().threads when that is set).
   int threads() const { return settings_.threads > 0 ? settings_.threads : governor_.settled(); }
 
@@ -205,7 +212,7 @@ class Simulator {
   /// zero. @throws std::invalid_argument (Contraction::validate) and changes nothing.
   void set_contraction(Contraction contraction);
   /// Time the contraction schedule counts beats from, s (0 unless set_contraction moved it).
-  double contraction_origin_s() const { return contraction_origin_s_; }
+  double contraction_origin_s() const { return st_.contraction_origin_s; }
 
  private:
   bool advance(double h, bool last_chance, StepReport& r, std::string& why);
@@ -218,6 +225,7 @@ class Simulator {
   int rotate_elements(const int* elems, int n, const Mat3* F);
 
   Model model_;
+  SimulatorState st_;  // everything a checkpoint saves besides the solver's memory
   SimulatorSettings settings_;
   ElementCaches caches_;                  // X and Dm_inv (no K^e, no g^e)
   std::vector<SpencerElement> elements_;  // what the step reads per element
@@ -227,42 +235,28 @@ class Simulator {
   std::vector<double> beta_e_;      // per element stiffness damping, s
   Eigen::VectorXd mass_;            // per node, kg
   Eigen::VectorXd mass_alpha_;      // per node, sum alpha_e m_e / 4, kg/s
-  Eigen::VectorXd f_ext_;           // 3N, the external force of the current (sub)step
   Eigen::VectorXd f_ext_const_;     // 3N, its part that never changes
   std::vector<const SurfaceLoad*> varying_loads_;  // ramped or follower (into model_.loads)
   void refresh_external_forces();
-  std::vector<double> active_;      // per element tension, Pa (empty: off)
   TwitchTable tension_table_;       // the contraction's normalised beat, tabulated
-  Eigen::VectorXd x_, v_;           // 3N
-  std::vector<Mat3> R_;
-  std::vector<Eigen::Quaterniond> q_;
   // Node blocks of the free DOFs (for the warp preconditioner): node of each block, the
   // elements around each node (CSR), and each block's rotation.
   std::vector<int> block_node_;
   std::vector<int> node_elem_start_, node_elems_;
-  std::vector<Eigen::Quaterniond> block_q_;
   /// @throws std::invalid_argument when `s` cannot work on this system (amg needs whole node blocks).
   void check_solver_fits(const SolverSettings& s) const;
-  std::vector<Mat3> block_R_;
   Eigen::VectorXd block_x_;  // node-block positions for the amg preconditioner
-  double time_s_ = 0;
-  long steps_ = 0;
-  double contraction_origin_s_ = 0;  // beats are counted from here (set_contraction)
   // work
-  Eigen::VectorXd f_, rhs_, vfree_;
-  Eigen::VectorXd vfree_prev_, guess_;  // last two solutions (warm start extrapolation)
-  double last_h_ = -1;
+  Eigen::VectorXd f_, rhs_;
+  Eigen::VectorXd guess_;  // warm start extrapolated from st_.vfree and st_.vfree_prev
   Eigen::VectorXd f_active_;        // 3N, active-stress forces of the step (when active)
-  bool rotations_current_ = false;  // R_ belongs to x_ (computed by the last step's checks)
   // The checks of the last (sub)step made the next step's element pass (assemble_elements)
-  // for step size ahead_h_: sys_ (without the mass terms), f_, f_active_ and active_ belong
-  // to x_, and ahead_elastic_j_ is its elastic energy. Anything that changes what the pass
+  // for step size ahead_h_: sys_ (without the mass terms), f_, f_active_ and st_.active_tension_pa belong
+  // to st_.x, and ahead_elastic_j_ is its elastic energy. Anything that changes what the pass
   // reads (material, damping, fibers, tension, contraction, state) clears it.
   bool assembled_ahead_ = false;
   double ahead_h_ = 0;
   double ahead_elastic_j_ = 0;
-  int inverted_current_ = 0;
-  double energy_floor_j_ = 0;
   std::vector<ChunkAcc> acc_;
   ThreadGovernor governor_;  // threads of each step when settings_.threads is 0
   Eigen::VectorXd x0_, v0_, vfree0_, vprev0_;  // state at the start of a step (rollback)
