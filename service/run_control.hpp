@@ -4,13 +4,15 @@
 ///
 /// A command is a kind and a JSON (or YAML) object of arguments. Each is checked whole
 /// before anything changes: a rejected command changes nothing and its reason names the
-/// argument at fault. Parameter commands that have a scene-file form (material,
+/// argument at fault. The commands are a table (RunControl::table: kind, allowed arguments,
+/// handler), their handlers one file per family. Parameter commands that have a scene-file form (material,
 /// contraction, fibers) are merged into the running scene's document and parsed by the
 /// scene parser, so they take the same keys, units and checks as a scene file.
 
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
 
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -18,6 +20,10 @@
 #include <vector>
 
 namespace fiberfem::service {
+
+namespace detail {
+class Args;
+}
 
 /// What a command did.
 struct CommandResult {
@@ -73,11 +79,43 @@ class RunControl {
   double heart_rate_bpm() const;
   /// Largest peak tension of the running contraction, Pa.
   double peak_tension_pa() const;
-  /// The kinds this accepts.
+  /// The kinds this accepts (the command table's, in its order).
   static const std::vector<std::string>& kinds();
 
+  /// Handles start_recording and stop_recording (the service sets it; without one they are
+  /// refused). Not counted as run changes (the parameter version stays).
+  using RecordingHandler = std::function<CommandResult(const std::string& kind, const std::string& args)>;
+  void set_recording_handler(RecordingHandler h) { recording_ = std::move(h); }
+
  private:
-  CommandResult dispatch(const std::string& kind, const std::string& args);
+  // One command kind: the arguments it allows, its handler (nullptr: the recording
+  // handler's), and whether an accepted one bumps the parameter version.
+  using Handler = CommandResult (RunControl::*)(const detail::Args&);
+  struct Entry {
+    std::string kind;
+    std::vector<std::string> args;
+    Handler handler;
+    bool changes_run;
+  };
+  static const std::vector<Entry>& table();
+  // Handlers, by family: run_control_flow.cpp, _forces.cpp, _parameters.cpp.
+  CommandResult on_pause(const detail::Args& a);
+  CommandResult on_resume(const detail::Args& a);
+  CommandResult on_step(const detail::Args& a);
+  CommandResult on_shutdown(const detail::Args& a);
+  CommandResult on_reset(const detail::Args& a);
+  CommandResult on_checkpoint(const detail::Args& a);
+  CommandResult on_restore(const detail::Args& a);
+  CommandResult on_apply_force(const detail::Args& a);
+  CommandResult on_clear_force(const detail::Args& a);
+  CommandResult on_set_material(const detail::Args& a);
+  CommandResult on_set_damping(const detail::Args& a);
+  CommandResult on_set_contraction(const detail::Args& a);
+  CommandResult on_set_fibers(const detail::Args& a);
+  CommandResult on_set_gravity(const detail::Args& a);
+  CommandResult on_set_time_step(const detail::Args& a);
+  CommandResult on_set_solver(const detail::Args& a);
+  RecordingHandler recording_;
   void refresh_loads();
 
   io::Scene scene_;        // as loaded (reset with parameters restores it)

@@ -302,6 +302,8 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
 #endif
   };
 
+  rc.set_recording_handler(recording_command);
+
   std::string stop_reason = "shut down by command";
   for (;;) {
     // 1. Commands, at the step boundary.
@@ -310,11 +312,7 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
           CommandResult r;
           const long step = rc.simulator().step_count();
           const double time = rc.simulator().time_s();
-          if (kind == "start_recording" || kind == "stop_recording") {
-            r = recording_command(kind, args);
-          } else {
-            r = rc.apply(kind, args);
-          }
+          r = rc.apply(kind, args);  // the recording commands reach recording_command through rc
           if (!r.accepted) last_message = "rejected " + kind + ": " + r.reason;
 #ifdef FIBERFEM_HAVE_ARCHIVE
           if (recorder) {  // every command, with the step it took effect at and its ack
