@@ -338,8 +338,8 @@ void block_rows(const int* start, const int* col, const double* val, const doubl
   }
 }
 
-// y = A x (K columns) over the block rows, in kProductParts fixed parts of the rows (not one
-// per thread, so the sums round the same on any number of threads). Part p owns block rows
+// y = A x (K columns) over the block rows, in parts fixed by the matrix (not one per thread,
+// so the sums round the same on any number of threads; SparseSystem::kProductPartRows). Part p owns block rows
 // [bounds[p], bounds[p + 1]) of y (zeroes them, writes them); its contributions to later
 // parts' rows go to its spill, which covers rows [bounds[p + 1], hi[p]) (the reach of its
 // blocks). After all parts, each part adds the earlier parts' spills over its rows, in part
@@ -348,7 +348,6 @@ void block_rows(const int* start, const int* col, const double* val, const doubl
 template <int K>
 void symmetric_block_product(const std::vector<int>& start_v, const std::vector<int>& col_v, const std::vector<double>& val_v,
                              const double* x, double* y, bool parallel, SparseSystem::ProductSpills& sp) {
-  constexpr int P = SparseSystem::kProductParts;
   const int nb = static_cast<int>(start_v.size()) - 1;
   constexpr size_t S = 3 * K;
   if (!parallel) {
@@ -358,8 +357,10 @@ void symmetric_block_product(const std::vector<int>& start_v, const std::vector<
   }
   if (sp.block_rows != nb) {  // the parts and the reach of their blocks (once per pattern)
     sp.block_rows = nb;
-    for (int p = 0; p <= P; ++p) sp.bounds[static_cast<size_t>(p)] = static_cast<int>(static_cast<long>(nb) * p / P);
-    for (int p = 0; p < P; ++p) {
+    sp.parts = std::clamp(nb / SparseSystem::kProductPartRows, 2, SparseSystem::kMaxProductParts);
+    for (int p = 0; p <= sp.parts; ++p)
+      sp.bounds[static_cast<size_t>(p)] = static_cast<int>(static_cast<long>(nb) * p / sp.parts);
+    for (int p = 0; p < sp.parts; ++p) {
       int hi = sp.bounds[static_cast<size_t>(p) + 1];
       for (int I = sp.bounds[static_cast<size_t>(p)]; I < sp.bounds[static_cast<size_t>(p) + 1]; ++I)
         for (int k = start_v[static_cast<size_t>(I)]; k < start_v[static_cast<size_t>(I) + 1]; ++k)
@@ -368,6 +369,7 @@ void symmetric_block_product(const std::vector<int>& start_v, const std::vector<
       sp.spill[static_cast<size_t>(p)].setZero(static_cast<Eigen::Index>(S * static_cast<size_t>(hi - sp.bounds[static_cast<size_t>(p) + 1])));
     }
   }
+  const int P = sp.parts;
   const auto own = [&](int p) {
     const int begin = sp.bounds[static_cast<size_t>(p)], end = sp.bounds[static_cast<size_t>(p) + 1];
     std::fill(y + S * static_cast<size_t>(begin), y + S * static_cast<size_t>(end), 0.0);
