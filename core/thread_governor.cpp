@@ -25,6 +25,12 @@ int ThreadGovernor::higher(int n) const {
   return std::min(p, max_);
 }
 
+void ThreadGovernor::remember(int count, double mean_s) {
+  if (count <= kRemembered) known_s_[static_cast<size_t>(count)] = mean_s;
+}
+
+double ThreadGovernor::known(int count) const { return count <= kRemembered ? known_s_[static_cast<size_t>(count)] : 0.0; }
+
 void ThreadGovernor::longer_interval() { interval_ = std::min(kMaxInterval, 2 * interval_); }
 
 void ThreadGovernor::start_probe(int count) {
@@ -37,7 +43,9 @@ void ThreadGovernor::start_probe(int count) {
 
 void ThreadGovernor::end_probe(bool switch_to_probe) {
   probing_ = false;
+  if (probe_filled_ > 0) remember(probe_, probe_sum_s_ / probe_filled_);
   if (switch_to_probe) {
+    remember(current_, mean_s_);
     current_ = probe_;
     mean_s_ = probe_sum_s_ / probe_filled_;  // the probe's steps start the new running mean
     measured_ = probe_filled_;
@@ -66,17 +74,20 @@ void ThreadGovernor::record(double step_s, bool comparable) {
     end_probe(wins);
     return;
   }
-  const bool stall = measured_ >= kMinInterval / 2 && step_s > kStallFactor * mean_s_;
-  mean_s_ = measured_ == 0 ? step_s : mean_s_ + kMeanWeight * (step_s - mean_s_);
-  measured_ = std::min(measured_ + 1, kMaxInterval);
-  if (stall && current_ > 1) {
+  const bool stall = measured_ >= kSettleSteps && step_s > kStallFactor * mean_s_;
+  measured_ = std::min(measured_ + 1, kMeanSteps);
+  mean_s_ += (step_s - mean_s_) / measured_;
+  const double fewer = known(lower(current_));
+  if (stall && current_ > 1 && !(fewer > 0 && fewer >= kSwitchGain * mean_s_)) {
     // Compare fewer threads with the mean this stall raised, now rather than at the next
-    // periodic probe. Leaving a count because it stalls makes the probes back to it rarer.
+    // periodic probe (unless fewer threads were measured slower than that mean already).
+    // Leaving a count because it stalls makes the probes back to it four times rarer.
+    longer_interval();
     longer_interval();
     start_probe(lower(current_));
     return;
   }
-  if (--until_probe_ > 0 || measured_ < kMinInterval / 2) return;
+  if (--until_probe_ > 0 || measured_ < kSettleSteps) return;
   // Periodic probe of a neighbour on the ladder (alternating down and up where both exist).
   const int down = lower(current_), up = higher(current_);
   int pick = probe_down_ ? down : up;

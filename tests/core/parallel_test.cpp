@@ -93,7 +93,7 @@ io::Scene shipped(const std::string& file) {
 
 TEST(Parallel, ContractingHeartHasTheSameBitsOnOneAndTwoThreads) {
   const io::Scene heart = shipped("heart.yaml");
-  expect_thread_count_invariant(heart.model, heart.settings, 30);
+  expect_thread_count_invariant(heart.model, heart.settings, 80);
 }
 
 core::Model large_beam() {

@@ -51,10 +51,10 @@ TEST(ThreadGovernor, KeepsEveryCoreWhereTheyPayAndProbesLessAndLess) {
     g.record(two_pay(t, i), true);
     EXPECT_EQ(g.settled(), 2) << "step " << i;
   }
-  // Probes of one thread, the interval doubling from 16 to 1024 steps: at most ten probes
-  // in 5,000 steps.
+  // Probes of one thread, the interval doubling from kMinInterval to kMaxInterval steps:
+  // at most eight probes in 5,000 steps.
   EXPECT_GT(one_thread_steps, 0) << "never probed: a machine that changes would not be noticed";
-  EXPECT_LE(one_thread_steps, 10 * ThreadGovernor::kProbeSteps) << "probes should become rare while two threads keep winning";
+  EXPECT_LE(one_thread_steps, 8 * ThreadGovernor::kProbeSteps) << "probes should become rare while two threads keep winning";
 }
 
 TEST(ThreadGovernor, SettlesOnOneThreadWhereTwoDoNotPay) {
@@ -72,7 +72,7 @@ TEST(ThreadGovernor, SettlesOnOneThreadWhereTwoDoNotPay) {
 
 // One core taken by another process: steps on two threads become 100 times slower (each
 // parallel loop waits for the descheduled thread). The governor leaves two threads after
-// the first such step, and returns to them once the core is free again.
+// a few such steps, and returns to them once the core is free again.
 TEST(ThreadGovernor, LeavesABusyCoreAndComesBackWhenItIsFree) {
   ThreadGovernor g(2);
   const auto quiet = [](int t, int) { return t == 1 ? 1.0e-3 : 0.6e-3; };
@@ -85,7 +85,9 @@ TEST(ThreadGovernor, LeavesABusyCoreAndComesBackWhenItIsFree) {
     g.record(busy(g.threads(), step++), true);
   }
   EXPECT_EQ(g.settled(), 1);
-  EXPECT_LE(slow_steps, 1) << "a stall should start a probe of one thread at once";
+  // Each stall starts a probe of one thread against the running mean it raised; the first
+  // stalls raise it by stall / 128 only, so a few are needed before one thread wins.
+  EXPECT_LE(slow_steps, 4) << "stalls of 100 times the step should move to one thread within a few";
   // While the core stays busy, the probes of two threads each cost one step (a probe step
   // three times the running mean ends the probe) and back off.
   int probe_steps = 0;
@@ -126,6 +128,26 @@ TEST(ThreadGovernor, SporadicStallsOutweighTheSecondThread) {
   EXPECT_LT(wall, 1.15 * one_thread) << "two threads throughout: " << two_threads << " s";
 }
 
+// Beside a client process that takes some of a core (the service publishing every step to
+// a subscriber, measured with bench_service): two threads stall now and then for a few
+// times their step, but their mean is still well below one thread's. Two stay.
+TEST(ThreadGovernor, SmallStallsThatCostLessThanTheSecondThreadGainsKeepIt) {
+  ThreadGovernor g(2);
+  const auto shared = [](int t, int step) {
+    if (t == 1) return 2.2e-3;
+    return step % 50 == 49 ? 15e-3 : 1.25e-3;
+  };
+  double wall = 0;
+  for (int step = 0; step < 20000; ++step) {
+    const double t = shared(g.threads(), step);
+    wall += t;
+    g.record(t, true);
+  }
+  EXPECT_EQ(g.settled(), 2);
+  const double two_threads = 20000 * (1.25e-3 + 13.75e-3 / 50);
+  EXPECT_LT(wall, 1.05 * two_threads) << "one thread throughout: " << 20000 * 2.2e-3 << " s";
+}
+
 // Work that grows for every count alike (a harder phase of the beat) is not a busy core:
 // after a probe or two the governor stays on the faster count.
 TEST(ThreadGovernor, WorkThatGrowsEverywhereDoesNotChangeTheCount) {
@@ -150,7 +172,7 @@ TEST(ThreadGovernor, StepsThatAreNotComparableAreLeftOut) {
   }
   // A probe that meets only steps left out ends undecided instead of holding its count.
   ThreadGovernor h(2);
-  drive(h, 16, [](int t, int) { return t == 1 ? 1.0e-3 : 0.6e-3; });
+  drive(h, ThreadGovernor::kMinInterval, [](int t, int) { return t == 1 ? 1.0e-3 : 0.6e-3; });
   ASSERT_EQ(h.threads(), 1) << "the first probe should have started";
   for (int i = 0; i < 4 * ThreadGovernor::kProbeSteps + 1; ++i) h.record(1.0, false);
   EXPECT_EQ(h.threads(), 2);
