@@ -1,5 +1,7 @@
 #include "io/fiber_file.hpp"
 
+#include "io/input_file.hpp"
+
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -31,8 +33,8 @@ core::Vec3 parse_triple(const std::string& text, const std::string& origin, int 
     ++n;
   }
   if (!numbers || n != 3)
-    throw FiberFileError(origin + ":" + std::to_string(line) + ": expected three numbers 'x y z', got '" + text + "'");
-  if (!v.allFinite()) throw FiberFileError(origin + ":" + std::to_string(line) + ": non-finite value in '" + text + "'");
+    throw FiberFileError(origin + ":" + std::to_string(line) + ": expected three numbers 'x y z', got '" + printable(text) + "'");
+  if (!v.allFinite()) throw FiberFileError(origin + ":" + std::to_string(line) + ": non-finite value in '" + printable(text) + "'");
   return v;
 }
 

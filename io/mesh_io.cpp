@@ -64,7 +64,7 @@ std::vector<T> fields(Lines& lines, const std::string& line, const std::string& 
   while (s >> tok) {
     std::istringstream t(tok);
     T v{};
-    if (!(t >> v) || !t.eof()) lines.fail("'" + tok + "' is not a valid " + what);
+    if (!(t >> v) || !t.eof()) lines.fail("'" + printable(tok) + "' is not a valid " + what);
     out.push_back(v);
   }
   return out;
@@ -255,11 +255,11 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
       const std::string end = "$End" + line.substr(1);
       std::string l;
       while (true) {
-        if (!lines.next(l)) lines.fail("unexpected end of file inside " + line);
+        if (!lines.next(l)) lines.fail("unexpected end of file inside " + printable(line));
         if (l == end) break;
       }
     } else {
-      lines.fail("expected a section start ($...), got '" + line.substr(0, 40) + "'");
+      lines.fail("expected a section start ($...), got '" + printable(line, 40) + "'");
     }
   }
   if (!have_format) throw MeshFileError(origin + ": no $MeshFormat section (not a gmsh file?)");
@@ -379,7 +379,7 @@ class Tokens {
     const std::string tok = next(what);
     std::istringstream t(tok);
     T v{};
-    if (!(t >> v) || !t.eof()) fail("'" + tok + "' is not a valid " + what);
+    if (!(t >> v) || !t.eof()) fail("'" + printable(tok) + "' is not a valid " + what);
     return v;
   }
   [[noreturn]] void fail(const std::string& what) const {

@@ -37,9 +37,9 @@ struct Ctx {
   [[noreturn]] void fail(const YAML::Node& at, const std::string& path, const std::string& what) const {
     for (const std::string& o : overridden)
       if (path.compare(0, o.size(), o) == 0 && (path.size() == o.size() || path[o.size()] == '.' || path[o.size()] == '['))
-        throw SceneError(origin + ": --set " + path + ": " + what);
+        throw SceneError(origin + ": --set " + printable(path, 200) + ": " + what);
     const int line = at.IsDefined() && at.Mark().line >= 0 ? at.Mark().line + 1 : 0;
-    throw SceneError(origin + ":" + std::to_string(line) + ": " + (path.empty() ? "" : path + ": ") + what);
+    throw SceneError(origin + ":" + std::to_string(line) + ": " + (path.empty() ? "" : printable(path, 200) + ": ") + what);
   }
 };
 
@@ -114,7 +114,7 @@ std::string text(const Ctx& ctx, const YAML::Node& n, const std::string& path) {
 std::string choice(const Ctx& ctx, const YAML::Node& n, const std::string& path, const std::vector<std::string>& options) {
   const std::string v = text(ctx, n, path);
   if (std::find(options.begin(), options.end(), v) == options.end())
-    ctx.fail(n, path, "'" + v + "' is not one of " + join(options));
+    ctx.fail(n, path, "'" + printable(v) + "' is not one of " + join(options));
   return v;
 }
 
@@ -164,7 +164,7 @@ std::vector<int> select_nodes(const Ctx& ctx, const YAML::Node& n, const std::st
     if (it == sets.end()) {
       std::vector<std::string> names;
       for (const auto& kv : sets) names.push_back(kv.first);
-      ctx.fail(m["node_set"], m.sub("node_set"), "no node set '" + name + "' (the mesh has: " + join(names) + ")");
+      ctx.fail(m["node_set"], m.sub("node_set"), "no node set '" + printable(name) + "' (the mesh has: " + join(names) + ")");
     }
     nodes = it->second;
   }
@@ -330,7 +330,7 @@ core::TetMesh build_mesh(const Ctx& ctx, const Map& top, const std::string& base
     }
   }
   if (gen != "box")
-    ctx.fail(m["generator"], "mesh.generator", "'" + gen + "' is not available (available: box, lv_ellipsoid)");
+    ctx.fail(m["generator"], "mesh.generator", "'" + printable(gen) + "' is not available (available: box, lv_ellipsoid)");
   for (const char* k : {"inner", "outer", "base_z", "resolution"})
     if (m.has(k)) ctx.fail(m[k], m.sub(k), "is an lv_ellipsoid key (box takes size, cells, origin)");
   core::BoxSpec spec;
@@ -669,7 +669,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     if (!reg.has("material")) ctx.fail(regions[r], path, "needs a material");
     region_names.push_back(reg.has("name") ? text(ctx, reg["name"], reg.sub("name")) : "regions[" + std::to_string(r) + "]");
     if (std::count(region_names.begin(), region_names.end(), region_names.back()) > 1)
-      ctx.fail(reg["name"], reg.sub("name"), "'" + region_names.back() + "' names an earlier region too");
+      ctx.fail(reg["name"], reg.sub("name"), "'" + printable(region_names.back()) + "' names an earlier region too");
     materials.push_back(material(ctx, reg["material"], reg.sub("material")));
     core::RayleighDamping d;
     if (reg.has("damping")) {

@@ -47,10 +47,31 @@ if [[ "${FIBERFEM_SKIP_APT:-0}" != 1 && ${#missing[@]} -gt 0 ]]; then
   "${sudo_cmd[@]}" apt-get update -q
   # libamgcl-dev is in Debian's contrib component, not main: add contrib for the same
   # archive when no configured source offers the package yet.
+  # The mirror is the one the machine already uses for its release (first deb822 stanza or
+  # sources.list line naming the release), else Debian's default.
   if [[ " ${missing[*]} " == *" libamgcl-dev "* ]] && ! apt-cache policy libamgcl-dev | grep -q "Candidate: [0-9]"; then
-    echo "setup: enabling Debian's contrib component for libamgcl-dev"
-    printf 'Types: deb\nURIs: http://deb.debian.org/debian\nSuites: %s %s-updates\nComponents: contrib\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
-      "$(. /etc/os-release && echo "$VERSION_CODENAME")" "$(. /etc/os-release && echo "$VERSION_CODENAME")" |
+    codename="$(. /etc/os-release && echo "$VERSION_CODENAME")"
+    mirror=""
+    for f in /etc/apt/sources.list.d/*.sources; do
+      [[ -r "$f" && -z "$mirror" ]] || continue
+      uris="" suites=""
+      while IFS= read -r line || [[ -n "$line" ]]; do
+        case "$line" in
+          URIs:*) uris="${line#URIs:}" ;;
+          Suites:*) suites="${line#Suites:}" ;;
+          "") [[ " $suites " == *" $codename "* && -n "$uris" ]] && { mirror="$(echo $uris | cut -d' ' -f1)"; break; }
+              uris="" suites="" ;;
+        esac
+      done <"$f"
+      [[ -z "$mirror" && " $suites " == *" $codename "* && -n "$uris" ]] && mirror="$(echo $uris | cut -d' ' -f1)"
+    done
+    if [[ -z "$mirror" && -r /etc/apt/sources.list ]]; then
+      mirror="$(awk -v c="$codename" '$1 == "deb" { for (i = 2; i < NF; i++) if ($i ~ /^[a-z+]+:\/\// && $(i + 1) == c) { print $i; exit } }' /etc/apt/sources.list)"
+    fi
+    mirror="${mirror:-http://deb.debian.org/debian}"
+    echo "setup: enabling Debian's contrib component for libamgcl-dev (from $mirror)"
+    printf 'Types: deb\nURIs: %s\nSuites: %s %s-updates\nComponents: contrib\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n' \
+      "$mirror" "$codename" "$codename" |
       "${sudo_cmd[@]}" tee /etc/apt/sources.list.d/fiberfem-contrib.sources >/dev/null
     "${sudo_cmd[@]}" apt-get update -q
   fi
