@@ -17,6 +17,7 @@ struct Tally {
   int steps = 0;
   int steps_off_settled = 0;  // steps run on a count other than the one finally settled
   int changes = 0;            // how often settled() changed
+  double wall_s = 0;          // the steps' times added up
 };
 
 // Steps `n` times; `time(threads, step)` is the wall time of a step.
@@ -27,7 +28,9 @@ Tally drive(ThreadGovernor& g, int n, const std::function<double(int, int)>& tim
     const int t = g.threads();
     EXPECT_GE(t, 1);
     EXPECT_LE(t, g.max_threads());
-    g.record(time(t, first_step + i), true);
+    const double step_s = time(t, first_step + i);
+    r.wall_s += step_s;
+    g.record(step_s, true);
     if (g.settled() != settled) ++r.changes;
     settled = g.settled();
     ++r.steps;
@@ -114,13 +117,7 @@ TEST(ThreadGovernor, SporadicStallsOutweighTheSecondThread) {
     if (t == 1) return 1.5e-3;
     return step % 60 == 59 ? 190e-3 : 0.93e-3;
   };
-  double wall = 0;
-  int step = 0;
-  for (; step < 20000; ++step) {
-    const double t = stalling(g.threads(), step);
-    wall += t;
-    g.record(t, true);
-  }
+  const double wall = drive(g, 20000, stalling).wall_s;
   EXPECT_EQ(g.settled(), 1);
   const double one_thread = 20000 * 1.5e-3, two_threads = 20000 * (0.93e-3 + 190e-3 / 60);
   // The price of noticing when the core is free again: a probe of two threads every 1,024
@@ -137,12 +134,7 @@ TEST(ThreadGovernor, SmallStallsThatCostLessThanTheSecondThreadGainsKeepIt) {
     if (t == 1) return 2.2e-3;
     return step % 50 == 49 ? 15e-3 : 1.25e-3;
   };
-  double wall = 0;
-  for (int step = 0; step < 20000; ++step) {
-    const double t = shared(g.threads(), step);
-    wall += t;
-    g.record(t, true);
-  }
+  const double wall = drive(g, 20000, shared).wall_s;
   EXPECT_EQ(g.settled(), 2);
   const double two_threads = 20000 * (1.25e-3 + 13.75e-3 / 50);
   EXPECT_LT(wall, 1.05 * two_threads) << "one thread throughout: " << 20000 * 2.2e-3 << " s";
