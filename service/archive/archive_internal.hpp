@@ -1,0 +1,102 @@
+#pragma once
+/// @file What the archive's parts share (writer, reader, checkpoint codec, sidecars):
+/// checkpoint blobs and sections, small HDF5 helpers, and the sidecar and codec entry
+/// points. Internal to fiberfem::archive.
+
+#include "service/archive/archive.hpp"
+#include "service/archive/hdf5.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <ctime>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace fiberfem::archive::detail {
+
+using nlohmann::json;
+
+
+inline std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+// Per-frame datasets under /frames (name, row shape); `step` is extended last, so a frame
+// is complete when `step` has it.
+constexpr hsize_t kScalarChunk = 256;
+
+// A checkpoint is a JSON header (scalars and the layout of the doubles) and one run of
+// doubles in /checkpoints/data; see docs/archive.md.
+struct Blob {
+  json layout = json::array();
+  std::vector<double> data;
+  void add(const std::string& name, const double* p, size_t n) {
+    layout.push_back({{"name", name}, {"offset", data.size()}, {"count", n}});
+    data.insert(data.end(), p, p + n);
+  }
+};
+
+inline void add_quaternions(Blob& b, const std::string& name, const std::vector<Eigen::Quaterniond>& q) {
+  std::vector<double> v;
+  v.reserve(4 * q.size());
+  for (const auto& x : q) v.insert(v.end(), x.coeffs().data(), x.coeffs().data() + 4);  // x y z w
+  b.add(name, v.data(), v.size());
+}
+inline void add_matrices(Blob& b, const std::string& name, const std::vector<core::Mat3>& m) {
+  std::vector<double> v;
+  v.reserve(9 * m.size());
+  for (const auto& x : m) v.insert(v.end(), x.data(), x.data() + 9);  // column-major
+  b.add(name, v.data(), v.size());
+}
+
+struct Section {
+  const double* p = nullptr;
+  size_t n = 0;
+};
+inline Section section(const json& header, const std::vector<double>& data, const std::string& name) {
+  for (const auto& s : header.at("layout"))
+    if (s.at("name") == name) {
+      const std::int64_t off = s.at("offset"), n = s.at("count");
+      if (off < 0 || n < 0 || static_cast<size_t>(off) > data.size() || static_cast<size_t>(n) > data.size() - static_cast<size_t>(off)) throw std::runtime_error("archive: checkpoint section '" + name + "' runs past its data");
+      return {data.data() + off, static_cast<size_t>(n)};
+    }
+  throw std::runtime_error("archive: checkpoint has no section '" + name + "'");
+}
+inline Eigen::VectorXd vector_of(const Section& s) { return Eigen::Map<const Eigen::VectorXd>(s.p, static_cast<Eigen::Index>(s.n)); }
+inline std::vector<Eigen::Quaterniond> quaternions_of(const Section& s) {
+  std::vector<Eigen::Quaterniond> q(s.n / 4);
+  for (size_t i = 0; i < q.size(); ++i) q[i].coeffs() = Eigen::Map<const Eigen::Vector4d>(s.p + 4 * i);
+  return q;
+}
+inline std::vector<core::Mat3> matrices_of(const Section& s) {
+  std::vector<core::Mat3> m(s.n / 9);
+  for (size_t i = 0; i < m.size(); ++i) m[i] = Eigen::Map<const core::Mat3>(s.p + 9 * i);
+  return m;
+}
+
+inline std::string join_json(const std::vector<std::string>& names) { return json(names).dump(); }
+
+inline std::vector<std::string> names_attribute(hid_t obj, const std::string& name) {
+  if (!h5::has_attribute(obj, name)) return {};
+  return json::parse(h5::read_string_attribute(obj, name)).get<std::vector<std::string>>();
+}
+
+
+/// Writes `text` to `path` through a temporary file and a rename (readers never see half).
+void write_atomically(const std::string& path, const std::string& text);
+/// The XDMF sidecar's path for an archive (RUN.h5 -> RUN.xdmf).
+std::string sidecar_path(const std::string& h5_path);
+/// The XDMF sidecar's text for F frames of N nodes and E elements.
+std::string xdmf_text(const std::string& h5_path, long F, const std::vector<double>& times, hsize_t N, hsize_t E, bool velocities,
+                      bool displacement);
+/// The checkpoint in a header (JSON) and its data. @throws json::exception when malformed.
+core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>& data, std::string* parameter_state);
+
+}  // namespace fiberfem::archive::detail
