@@ -30,15 +30,27 @@ from cyclonedds.util import duration
 
 from .types import Command, CommandAck, MeshState, MeshTopology, ServiceStatus
 
+# The QoS of idl/bus.cpp, policy for policy (tests/idl/python_qos_check.py compares them on
+# live entities and fails when they drift; docs/dds.md explains each choice).
 _RELIABLE = Policy.Reliability.Reliable(duration(seconds=10))
 QOS = {
     "topology": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1)),
-    "state": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
+    "state": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1),
+                 Policy.Deadline(duration(seconds=2))),
     "command": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepAll),
     "ack": Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepLast(1024),
                Policy.DurabilityService(cleanup_delay=0, history=Policy.History.KeepLast(64), max_samples=-1,
                                         max_instances=-1, max_samples_per_instance=-1)),
-    "status": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1)),
+    "status": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1),
+                  Policy.Deadline(duration(seconds=2)), Policy.Liveliness.Automatic(duration(seconds=3))),
+}
+# Readers differ from their topic in two ways: they request no deadline (a service offers
+# one), and ack readers keep all (the acks of every client of a run share one instance).
+READER_QOS = {
+    **QOS,
+    "state": Qos(Policy.Deadline(duration(infinite=True)), base=QOS["state"]),
+    "status": Qos(Policy.Deadline(duration(infinite=True)), base=QOS["status"]),
+    "ack": Qos(Policy.History.KeepAll, base=QOS["ack"]),
 }
 TOPIC_NAMES = {
     "topology": "fiberfem_mesh_topology",
@@ -98,11 +110,10 @@ class Client:
         t = {k: Topic(self.dp, TOPIC_NAMES[k], cls, qos=QOS[k])
              for k, cls in (("topology", MeshTopology), ("state", MeshState), ("command", Command),
                             ("ack", CommandAck), ("status", ServiceStatus))}
-        self._status = DataReader(self.dp, t["status"], qos=QOS["status"])
-        # Keep all: the acks of every client of a run share one instance (idl/bus.cpp).
-        self._ack = DataReader(self.dp, t["ack"], qos=Qos(_RELIABLE, Policy.Durability.TransientLocal, Policy.History.KeepAll))
-        self._state = DataReader(self.dp, t["state"], qos=QOS["state"])
-        self._topology = DataReader(self.dp, t["topology"], qos=QOS["topology"])
+        self._status = DataReader(self.dp, t["status"], qos=READER_QOS["status"])
+        self._ack = DataReader(self.dp, t["ack"], qos=READER_QOS["ack"])
+        self._state = DataReader(self.dp, t["state"], qos=READER_QOS["state"])
+        self._topology = DataReader(self.dp, t["topology"], qos=READER_QOS["topology"])
         self._command = DataWriter(self.dp, t["command"], qos=QOS["command"])
         self.runs: Dict[str, ServiceStatus] = {}
         self._seen: Dict[str, float] = {}  # monotonic time of each run's newest status
