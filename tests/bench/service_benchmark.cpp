@@ -237,8 +237,8 @@ void security(const std::string& dir, double seconds, int commands, int nodes, i
     for (int o = 0; o < 2; ++o) {
       const int mode = (o + r) % 2;  // 0 plain, 1 secure
       profiles = mode ? secure : none;
-      // One engine thread: on a shared machine two OpenMP threads collapse (docs/options.md,
-      // --threads), and the figure is about publishing, not the engine.
+      // One engine thread: the figure is about publishing, not the engine, and a fixed
+      // count keeps the two modes comparable on a shared machine.
       const FramesResult f = frames(mode ? "heart-secure" : "heart-plain", {"--builtin", "heart", "--threads", "1"}, seconds);
       figures[0][mode].push_back(f.steps_per_s);
       figures[1][mode].push_back(f.received_per_s);

@@ -481,7 +481,8 @@ int main(int argc, char** argv) {
   doc << "# Step benchmark\n\n"
       << "Made by `build/release/tests/bench/bench_step" << (quick ? " --quick" : "")
       << (out.empty() ? "" : " --out " + out) << "` on " << date << ", " << u.machine << ", "
-      << omp_get_max_threads() << " OpenMP threads"
+      << (threads > 0 ? std::to_string(threads) + " OpenMP threads"
+                      : "threads chosen by the engine (up to " + std::to_string(omp_get_max_threads()) + ")")
       << ". Cantilever 10 x 1 x 1 cm clamped at x = 0 under gravity, lambda 40 kPa, mu 10 kPa, "
          "rho 1000 kg/m^3, mass damping 1/s, dt "
       << g_dt << " s, falling from rest; timings are medians over "

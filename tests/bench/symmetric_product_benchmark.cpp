@@ -1,8 +1,9 @@
-// bench_symmetric_product: what storing only the upper half of the step's matrix would
-// save in its sparse products (docs/performance.md, "What the two misses need"). On the
+// bench_symmetric_product: what storing only the upper half of the step's matrix saves in
+// its sparse products (docs/performance.md, "The block product and the warm-start
+// projection"; the engine stores upper 3 x 3 blocks, the bsr-upper form below). On the
 // paper-size benchmark beam's pattern (the SparseSystem of bench_step's small beam, all
 // free DOFs but the clamped end), with symmetric values, it times y = A x four ways:
-//   csr        the engine's product today (both triangles stored, a row at a time);
+//   csr        both triangles stored, a row at a time (Eigen's product; the reference);
 //   csr-upper  the same arrays with only the upper triangle kept, each entry used twice;
 //   bsr-upper  3 x 3 node blocks, upper blocks only (one index per block, not per entry);
 // on one thread, and the symmetric ones also on two (each thread with its own y, summed).
