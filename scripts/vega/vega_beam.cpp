@@ -6,10 +6,9 @@
 // What runs is Vega's own code, as its examples use it: TetMesh (Vega's TetGen or .veg
 // reader) with one E/nu material, Vega's consistent mass matrix, CorotationalLinearFEM
 // through CorotationalLinearFEMForceModel with the exact tangent (warp 2; --warp 1 is the
-// warped stiffness R K R^T of Mueller and Gross 2004),
-// ImplicitBackwardEulerSparse with one Newton iteration per step (the linearised step)
-// and its Jacobi-preconditioned CG (tolerance 1e-6 and the zero initial guess are fixed
-// inside Vega's integrator). The only addition is a count of CG iterations: Vega discards
+// warped stiffness R K R^T of Mueller and Gross 2004), ImplicitBackwardEulerSparse with
+// one Newton iteration per step (the linearised step) and its Jacobi-preconditioned CG
+// (tolerance 1e-6 and the zero initial guess are fixed inside Vega's integrator). The only addition is a count of CG iterations: Vega discards
 // the count its solver returns, so the integrator's solver is replaced by a CGSolver that
 // counts the products with its search direction (one per iteration) and is otherwise the
 // same object Vega builds.
@@ -21,7 +20,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <memory>
 #include <string>
 #include <vector>
