@@ -1,11 +1,14 @@
 // The replay loop: an archive clock advancing at `rate` while playing; each iteration
 // handles commands, publishes the newest frame at or before the clock, and sleeps until
-// the next frame is due (listening for commands meanwhile).
+// the next frame is due (listening for commands meanwhile). The archive is the frame
+// source; the topology and states reach the bus as a live run's do (run_topology,
+// RunEndpoints).
 
 #include "service/replay.hpp"
 
 #include "service/archive/archive.hpp"
 #include "service/run_endpoints.hpp"
+#include "service/run_topology.hpp"
 #include "service/stop_signals.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -13,10 +16,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <sstream>
-#include <csignal>
 #include <cstdio>
 #include <ostream>
+#include <sstream>
 #include <stdexcept>
 
 namespace fiberfem::service {
@@ -24,6 +26,7 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+double seconds_between(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
 
 struct Reject : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -74,6 +77,216 @@ long whole_arg(const YAML::Node& args, const char* key, double lo, double hi) {
   return static_cast<long>(v);
 }
 
+// The archive as a frame source: its frames' times and steps, the frame shown and the
+// archive clock, and how a frame becomes a published state.
+class Playback {
+ public:
+  explicit Playback(const ReplayOptions& o) : reader_(o.path, o.follow), times_(reader_.times()), steps_(reader_.steps()) {
+    const archive::ArchiveHeader& h = reader_.header();
+    if (reader_.frames() == 0 && !o.follow) throw std::runtime_error(o.path + ": the archive has no frames");
+    index_ = std::lower_bound(times_.begin(), times_.end(), o.from_s - 1e-9) - times_.begin();
+    if (index_ >= static_cast<long>(times_.size())) index_ = std::max<long>(0, static_cast<long>(times_.size()) - 1);
+    clock_s_ = times_.empty() ? 0.0 : times_[static_cast<size_t>(index_)];
+    const core::TetMesh mesh(h.rest_positions, h.tets, h.regions);  // the boundary, from the rest mesh
+    std::vector<std::string> names;
+    std::vector<double> peaks;
+    scene_facts(h.scene_yaml, mesh.num_regions(), names, peaks);
+    topology_ = topology_record(mesh, h.fibers, h.fixed_dofs, names, {});
+    topology_.scene_name = h.scene_name;
+    topology_.scene_hash = h.scene_sha256;
+    topology_.replay = true;
+    peak_table_.region_peak_pa = peaks;
+    has_peaks_ = std::any_of(peaks.begin(), peaks.end(), [](double p) { return p > 0; });
+  }
+
+  const archive::ArchiveHeader& header() const { return reader_.header(); }
+  const TopologyData& topology() const { return topology_; }
+  long frames() const { return static_cast<long>(times_.size()); }
+  long last() const { return frames() - 1; }
+  long index() const { return index_; }
+  double clock_s() const { return clock_s_; }
+  double end_s() const { return times_.empty() ? 0.0 : times_.back(); }
+  double time_s() const { return times_.empty() ? 0.0 : times_[static_cast<size_t>(index_)]; }
+  long step() const { return times_.empty() ? 0 : steps_[static_cast<size_t>(index_)]; }
+  bool at_end() const { return last() >= 0 && index_ == last() && clock_s_ >= times_.back(); }
+  /// Wall time until the next frame is due at `rate`, s (infinite at the last).
+  double until_next_s(double rate) const {
+    return index_ < last() ? std::max(0.0, (times_[static_cast<size_t>(index_) + 1] - clock_s_) / rate) : HUGE_VAL;
+  }
+
+  // The clock runs `dt_s` of archive time on: to the newest due frame, or (every_frame)
+  // at most one frame on, the clock waiting for it.
+  void advance(double dt_s, bool every_frame) {
+    if (last() < 0) return;
+    clock_s_ += dt_s;
+    if (every_frame) {
+      if (index_ < last() && next_time() <= clock_s_ + 1e-12) ++index_;
+      clock_s_ = std::min(clock_s_, index_ < last() ? next_time() : clock_s_);
+    } else {
+      while (index_ < last() && next_time() <= clock_s_ + 1e-12) ++index_;
+    }
+  }
+  // One frame on (an ordered step). @return false at the last frame.
+  bool step_on() {
+    if (index_ >= last()) return false;
+    ++index_;
+    clock_s_ = times_[static_cast<size_t>(index_)];
+    return true;
+  }
+  void seek(long i) {
+    index_ = i;
+    clock_s_ = times_[static_cast<size_t>(i)];
+  }
+  // The last frame at or before t.
+  long frame_at_time(double t) const {
+    return std::max<long>(0, std::upper_bound(times_.begin(), times_.end(), t + 1e-9) - times_.begin() - 1);
+  }
+  // The first frame of a step at or after `step`, or frames().
+  long frame_of_step(long step) const { return std::lower_bound(steps_.begin(), steps_.end(), step) - steps_.begin(); }
+  long last_step() const { return steps_.back(); }
+  // Following a live file: the frames written since. @return whether there are new ones.
+  bool refresh() {
+    if (reader_.refresh() <= frames()) return false;
+    times_ = reader_.times(), steps_ = reader_.steps();
+    return true;
+  }
+
+  void publish(RunEndpoints& bus, unsigned version) {
+    const archive::Frame f = reader_.frame(index_);
+    // Over the archived scene's peaks; in Pa when the scene text gave none.
+    const std::vector<double> a = has_peaks_ ? peak_table_.activation(header().regions, f.activation_pa) : f.activation_pa;
+    bus.publish_state(static_cast<unsigned long>(f.step), f.time_s, version, f.positions, {}, a);
+  }
+
+ private:
+  double next_time() const { return times_[static_cast<size_t>(index_) + 1]; }
+
+  archive::ArchiveReader reader_;
+  std::vector<double> times_;
+  std::vector<long> steps_;
+  long index_ = 0;
+  double clock_s_ = 0;
+  TopologyData topology_;
+  core::Contraction peak_table_;  // the peaks only, for Contraction::activation
+  bool has_peaks_ = false;
+};
+
+// What the replay's commands change (docs/replay.md).
+struct Controls {
+  bool paused = false, loop = false, shutdown = false;
+  double rate = 1.0;
+  long ordered_steps = 0;
+  unsigned version = 0;  // bumped by every accepted command
+};
+
+// Refuses an argument not in `keys`.
+void allow_only(const YAML::Node& args, const std::string& kind, std::initializer_list<const char*> keys) {
+  for (const auto& kv : args) {
+    if (!kv.first.IsScalar()) throw Reject("argument names must be words, not lists or objects");
+    const std::string k = kv.first.as<std::string>();
+    if (std::none_of(keys.begin(), keys.end(), [&](const char* a) { return k == a; }))
+      throw Reject("unknown argument '" + k + "' for " + kind);
+  }
+}
+
+std::string seek(Playback& p, const YAML::Node& args) {
+  if (static_cast<bool>(args["time"]) == static_cast<bool>(args["frame"])) throw Reject("give exactly one of 'time' (s) and 'frame'");
+  if (p.frames() == 0) throw Reject("the archive has no frames yet");
+  long i = 0;
+  if (args["time"]) {
+    i = p.frame_at_time(number_arg(args, "time", 0, 1e12));
+  } else {
+    const long step = whole_arg(args, "frame", 0, 1e15);
+    i = p.frame_of_step(step);
+    if (i >= p.frames()) throw Reject("no frame " + std::to_string(step) + " (last is " + std::to_string(p.last_step()) + ")");
+  }
+  p.seek(i);
+  return "at frame " + std::to_string(p.step()) + ", t = " + std::to_string(p.clock_s()) + " s";
+}
+
+// The service's run controls plus seek, rate and loop.
+std::string apply(Playback& p, Controls& c, const std::string& kind, const YAML::Node& args) {
+  if (kind == "pause") {
+    allow_only(args, kind, {});
+    c.paused = true, c.ordered_steps = 0;
+    return "paused";
+  }
+  if (kind == "resume") {
+    allow_only(args, kind, {});
+    c.paused = false, c.ordered_steps = 0;
+    return "playing";
+  }
+  if (kind == "step") {
+    allow_only(args, kind, {"count"});
+    const long n = args["count"] ? whole_arg(args, "count", 1, 1e6) : 1;
+    c.paused = true, c.ordered_steps += n;
+    return std::to_string(n) + " frames ordered, then paused";
+  }
+  if (kind == "seek") {
+    allow_only(args, kind, {"time", "frame"});
+    return seek(p, args);
+  }
+  if (kind == "set_rate") {
+    allow_only(args, kind, {"rate"});
+    if (!args["rate"]) throw Reject("needs 'rate' (archive seconds per wall second)");
+    c.rate = number_arg(args, "rate", 1e-3, 1000);
+    return "rate set";
+  }
+  if (kind == "loop") {
+    allow_only(args, kind, {"on"});
+    try {
+      c.loop = args["on"] ? args["on"].as<bool>() : true;
+    } catch (const YAML::Exception&) {
+      throw Reject("'on' must be true or false");
+    }
+    return c.loop ? "looping" : "not looping";
+  }
+  if (kind == "shutdown") {
+    allow_only(args, kind, {});
+    c.shutdown = true;
+    return "shutting down";
+  }
+  throw Reject("'" + kind + "' is not a replay command (replay takes pause, resume, step, seek, set_rate, loop, shutdown)");
+}
+
+CommandReply apply_command(Playback& p, Controls& c, const std::string& kind, const std::string& text) {
+  try {
+    YAML::Node args = YAML::Load(text.empty() ? "{}" : text);
+    if (args.IsNull()) args = YAML::Node(YAML::NodeType::Map);
+    if (!args.IsMap()) throw Reject("arguments must be a JSON object");
+    CommandReply r{true, apply(p, c, kind, args)};
+    ++c.version;
+    return r;
+  } catch (const YAML::Exception& e) {
+    return {false, "arguments are not valid JSON: " + e.msg};
+  } catch (const std::exception& e) {
+    return {false, e.what()};
+  }
+}
+
+void publish_status(RunEndpoints& bus, const Playback& p, const Controls& c, const ReplayOptions& o, bool at_end,
+                    long frames_in_period, double period_s) {
+  StatusData st;
+  st.scene_name = p.header().scene_name;
+  st.replay = true;
+  st.mode = "replay";
+  st.state = c.paused ? "paused" : at_end ? "ended" : "replay";
+  st.frame = static_cast<unsigned long>(p.step());
+  st.time_s = p.time_s();
+  st.frames_per_second = period_s < 1e6 ? static_cast<double>(frames_in_period) / period_s : 0.0;
+  st.real_time_factor = c.paused || at_end ? 0.0 : c.rate;
+  st.dt_s = p.header().dt_s;
+  st.parameter_version = c.version;
+  st.recording = o.path;
+  st.recorded_frames = static_cast<unsigned long>(p.frames());
+  bus.publish_status(st);
+  if (o.status_line) {
+    std::fprintf(stderr, "\rreplay %-7s t=%8.3f s  frame %7lu  of %ld  x%.2f   ", st.state.c_str(), st.time_s,
+                 static_cast<unsigned long>(st.frame), p.frames(), c.rate);
+    std::fflush(stderr);
+  }
+}
+
 }  // namespace
 
 void ReplayOptions::validate() const {
@@ -85,37 +298,8 @@ void ReplayOptions::validate() const {
 
 int replay(const ReplayOptions& options, std::ostream& out) {
   options.validate();
-  archive::ArchiveReader reader(options.path, options.follow);
-  const archive::ArchiveHeader& h = reader.header();
-  if (reader.frames() == 0 && !options.follow) throw std::runtime_error(options.path + ": the archive has no frames");
-
-  // The topology, as the live service published it (boundary from the rest mesh).
-  const core::TetMesh mesh(h.rest_positions, h.tets, h.regions);
-  TopologyData topo;
-  topo.scene_name = h.scene_name;
-  topo.scene_hash = h.scene_sha256;
-  topo.replay = true;
-  topo.num_nodes = mesh.num_nodes();
-  topo.num_elements = mesh.num_elements();
-  for (int n = 0; n < mesh.num_nodes(); ++n)
-    for (int d = 0; d < 3; ++d) topo.rest_positions.push_back(static_cast<float>(h.rest_positions(d, n)));
-  for (const auto& t : h.tets) topo.tets.insert(topo.tets.end(), t.begin(), t.end());
-  for (const auto& t : mesh.boundary_triangles()) topo.triangles.insert(topo.triangles.end(), t.begin(), t.end());
-  topo.triangle_elements.assign(mesh.boundary_triangle_elements().begin(), mesh.boundary_triangle_elements().end());
-  topo.element_regions.assign(h.regions.begin(), h.regions.end());
-  std::vector<double> peaks;
-  scene_facts(h.scene_yaml, mesh.num_regions(), topo.region_names, peaks);
-  core::Contraction peak_table;  // the peaks only, for Contraction::activation
-  peak_table.region_peak_pa = peaks;
-  const bool has_peaks = std::any_of(peaks.begin(), peaks.end(), [](double p) { return p > 0; });
-  for (const auto& f : h.fibers)
-    for (int d = 0; d < 3; ++d) topo.fibers.push_back(static_cast<float>(f(d)));
-  for (int n = 0; n < mesh.num_nodes(); ++n)
-    if (!h.fixed_dofs.empty() && (h.fixed_dofs[3 * static_cast<size_t>(n)] || h.fixed_dofs[3 * static_cast<size_t>(n) + 1] ||
-                                  h.fixed_dofs[3 * static_cast<size_t>(n) + 2]))
-      topo.fixed_nodes.push_back(n);
-
-  const std::string run_id = options.run_id.empty() ? default_run_id("replay-" + h.scene_name) : options.run_id;
+  Playback p(options);
+  const std::string run_id = options.run_id.empty() ? default_run_id("replay-" + p.header().scene_name) : options.run_id;
   std::unique_ptr<RunEndpoints> bus;
   try {
     bus = std::make_unique<RunEndpoints>(run_id);
@@ -123,186 +307,62 @@ int replay(const ReplayOptions& options, std::ostream& out) {
     out << "fiberfem replay: " << e.what() << "\n";
     return 1;
   }
-  bus->publish_topology(topo);
-
-  std::vector<double> times = reader.times();
-  std::vector<long> steps = reader.steps();
-  long index = std::lower_bound(times.begin(), times.end(), options.from_s - 1e-9) - times.begin();
-  if (index >= static_cast<long>(times.size())) index = std::max<long>(0, static_cast<long>(times.size()) - 1);
-  double clock_s = times.empty() ? 0.0 : times[static_cast<size_t>(index)];
-  bool paused = options.paused, loop = options.loop, shutdown = false;
-  double rate = options.rate;
-  long ordered_steps = 0;
-  unsigned version = 0;
-  long published = -1, published_count = 0;
-  std::vector<float> pos, act;
-
-  out << "fiberfem replay: run '" << run_id << "' from " << options.path << " (scene '" << h.scene_name << "', " << times.size()
-      << " frames, " << (times.empty() ? 0.0 : times.back()) << " s) at x" << rate << (loop ? ", looping" : "") << "\n"
-      << std::flush;
-
-  auto publish = [&](long i) {
-    const archive::Frame f = reader.frame(i);
-    pos.resize(static_cast<size_t>(f.positions.size()));
-    for (Eigen::Index k = 0; k < f.positions.size(); ++k) pos[static_cast<size_t>(k)] = static_cast<float>(f.positions.data()[k]);
-    // Over the archived scene's peaks; in Pa when the scene text gave none.
-    const std::vector<double> a = has_peaks ? peak_table.activation(h.regions, f.activation_pa) : f.activation_pa;
-    act.assign(a.begin(), a.end());
-    bus->publish_state(static_cast<unsigned long>(f.step), f.time_s, version, pos, act);
-    published = i;
-    ++published_count;
-  };
-
-  // Commands: the service's run controls plus seek, rate and loop (docs/replay.md).
-  auto apply = [&](const std::string& kind, const std::string& text, const std::string&) -> CommandReply {
-    try {
-      YAML::Node args = YAML::Load(text.empty() ? "{}" : text);
-      if (args.IsNull()) args = YAML::Node(YAML::NodeType::Map);
-      if (!args.IsMap()) throw Reject("arguments must be a JSON object");
-      auto allow = [&](std::initializer_list<const char*> keys) {
-        for (const auto& kv : args) {
-          if (!kv.first.IsScalar()) throw Reject("argument names must be words, not lists or objects");
-          const std::string k = kv.first.as<std::string>();
-          if (std::none_of(keys.begin(), keys.end(), [&](const char* a) { return k == a; }))
-            throw Reject("unknown argument '" + k + "' for " + kind);
-        }
-      };
-      CommandReply r{true, ""};
-      if (kind == "pause") {
-        allow({});
-        paused = true, ordered_steps = 0, r.reason = "paused";
-      } else if (kind == "resume") {
-        allow({});
-        paused = false, ordered_steps = 0, r.reason = "playing";
-      } else if (kind == "step") {
-        allow({"count"});
-        const long n = args["count"] ? whole_arg(args, "count", 1, 1e6) : 1;
-        paused = true, ordered_steps += n, r.reason = std::to_string(n) + " frames ordered, then paused";
-      } else if (kind == "seek") {
-        allow({"time", "frame"});
-        if (static_cast<bool>(args["time"]) == static_cast<bool>(args["frame"])) throw Reject("give exactly one of 'time' (s) and 'frame'");
-        if (times.empty()) throw Reject("the archive has no frames yet");
-        long i = 0;
-        if (args["time"]) {
-          const double t = number_arg(args, "time", 0, 1e12);
-          i = std::upper_bound(times.begin(), times.end(), t + 1e-9) - times.begin() - 1;  // last frame at or before t
-          i = std::max<long>(0, i);
-        } else {
-          const double fr = static_cast<double>(whole_arg(args, "frame", 0, 1e15));
-          i = std::lower_bound(steps.begin(), steps.end(), static_cast<long>(fr)) - steps.begin();
-          if (i >= static_cast<long>(steps.size())) throw Reject("no frame " + std::to_string(static_cast<long>(fr)) + " (last is " + std::to_string(steps.back()) + ")");
-        }
-        index = i, clock_s = times[static_cast<size_t>(i)], published = -1;
-        r.reason = "at frame " + std::to_string(steps[static_cast<size_t>(i)]) + ", t = " + std::to_string(clock_s) + " s";
-      } else if (kind == "set_rate") {
-        allow({"rate"});
-        if (!args["rate"]) throw Reject("needs 'rate' (archive seconds per wall second)");
-        rate = number_arg(args, "rate", 1e-3, 1000), r.reason = "rate set";
-      } else if (kind == "loop") {
-        allow({"on"});
-        try {
-          loop = args["on"] ? args["on"].as<bool>() : true;
-        } catch (const YAML::Exception&) {
-          throw Reject("'on' must be true or false");
-        }
-        r.reason = loop ? "looping" : "not looping";
-      } else if (kind == "shutdown") {
-        allow({});
-        shutdown = true, r.reason = "shutting down";
-      } else {
-        throw Reject("'" + kind + "' is not a replay command (replay takes pause, resume, step, seek, set_rate, loop, shutdown)");
-      }
-      ++version;
-      return r;
-    } catch (const YAML::Exception& e) {
-      return {false, "arguments are not valid JSON: " + e.msg};
-    } catch (const std::exception& e) {
-      return {false, e.what()};
-    }
-  };
+  bus->publish_topology(p.topology());
+  Controls c;
+  c.paused = options.paused, c.loop = options.loop, c.rate = options.rate;
+  out << "fiberfem replay: run '" << run_id << "' from " << options.path << " (scene '" << p.header().scene_name << "', "
+      << p.frames() << " frames, " << p.end_s() << " s) at x" << c.rate << (c.loop ? ", looping" : "") << "\n" << std::flush;
 
   const StopSignals stop_signals;
   const auto t_begin = Clock::now();
-  auto t_last = Clock::now(), t_status = Clock::now() - std::chrono::hours(1), t_state = Clock::now();
-  long frames_in_period = 0;
+  auto t_last = t_begin, t_status = t_begin - std::chrono::hours(1), t_state = t_begin;
+  long published = -1, published_count = 0, frames_in_period = 0;
   std::string stop = "shut down by command";
   for (;;) {
-    bus->handle_commands(apply, [&] {
-      return std::make_pair(static_cast<unsigned long>(times.empty() ? 0 : steps[static_cast<size_t>(index)]), version);
-    });
-    if (shutdown) break;
+    bus->handle_commands(
+        [&](const std::string& kind, const std::string& args, const std::string&) {
+          const CommandReply r = apply_command(p, c, kind, args);
+          if (kind == "seek" && r.accepted) published = -1;  // the frame sought is published even if shown
+          return r;
+        },
+        [&] { return std::make_pair(static_cast<unsigned long>(p.step()), c.version); });
+    if (c.shutdown) break;
     if (stop_signals.caught()) {
       stop = std::string("stopped by ") + stop_signals.name();
       break;
     }
     const auto now = Clock::now();
-    const double dt_wall = std::chrono::duration<double>(now - t_last).count();
+    const double dt_wall = seconds_between(t_last, now);
     t_last = now;
-    const long last = static_cast<long>(times.size()) - 1;
-    if (!paused && last >= 0) {
-      clock_s += rate * dt_wall;
-      if (options.every_frame) {  // at most one frame on per iteration; the clock waits for it
-        if (index < last && times[static_cast<size_t>(index) + 1] <= clock_s + 1e-12) ++index;
-        clock_s = std::min(clock_s, index < last ? times[static_cast<size_t>(index) + 1] : clock_s);
-      } else {
-        while (index < last && times[static_cast<size_t>(index) + 1] <= clock_s + 1e-12) ++index;
-      }
-    } else if (paused && ordered_steps > 0 && index < last) {
-      ++index, --ordered_steps;
-      clock_s = times[static_cast<size_t>(index)];
+    if (!c.paused) p.advance(c.rate * dt_wall, options.every_frame);
+    else if (c.ordered_steps > 0 && p.step_on()) --c.ordered_steps;
+    bool at_end = p.at_end();
+    if (at_end && !c.paused) {
+      if (options.follow && p.refresh()) at_end = false;
+      else if (c.loop && published == p.last()) p.seek(0), at_end = false;
     }
-    bool at_end = last >= 0 && index == last && clock_s >= times.back();
-    if (at_end && !paused) {
-      if (options.follow && reader.refresh() > static_cast<long>(times.size())) {
-        times = reader.times(), steps = reader.steps();
-        at_end = false;
-      } else if (loop) {
-        if (published == last) index = 0, clock_s = times.front(), at_end = false;
-      }
+    const bool fresh = p.last() >= 0 && p.index() != published;
+    if (fresh || (p.last() >= 0 && seconds_between(t_state, now) >= 1.0)) {  // and at least once a second (the deadline)
+      p.publish(*bus, c.version);
+      published = p.index(), ++published_count, t_state = now;
+      frames_in_period += fresh;
     }
-    if (last >= 0 && index != published) {
-      publish(index);
-      ++frames_in_period;
-      t_state = now;
-    } else if (last >= 0 && std::chrono::duration<double>(now - t_state).count() >= 1.0) {
-      publish(index);  // at least once a second (the state deadline)
-      t_state = now;
-    }
-    if (at_end && published == last && options.exit_at_end && !loop && !options.follow) {
+    if (at_end && published == p.last() && options.exit_at_end && !c.loop && !options.follow) {
       stop = "reached the end of the archive";
       break;
     }
-    const double since_status = std::chrono::duration<double>(now - t_status).count();
-    if (since_status >= 1.0 / options.status_hz) {
-      StatusData st;
-      st.scene_name = h.scene_name;
-      st.replay = true;
-      st.mode = "replay";
-      st.state = paused ? "paused" : at_end ? "ended" : "replay";
-      st.frame = static_cast<unsigned long>(last >= 0 ? steps[static_cast<size_t>(index)] : 0);
-      st.time_s = last >= 0 ? times[static_cast<size_t>(index)] : 0.0;
-      st.frames_per_second = since_status < 1e6 ? static_cast<double>(frames_in_period) / since_status : 0.0;
-      st.real_time_factor = paused || at_end ? 0.0 : rate;
-      st.dt_s = h.dt_s;
-      st.parameter_version = version;
-      st.recording = options.path;
-      st.recorded_frames = static_cast<unsigned long>(times.size());
-      bus->publish_status(st);
-      if (options.status_line) {
-        std::fprintf(stderr, "\rreplay %-7s t=%8.3f s  frame %7lu  of %zu  x%.2f   ", st.state.c_str(), st.time_s, st.frame, times.size(), rate);
-        std::fflush(stderr);
-      }
-      frames_in_period = 0;
-      t_status = now;
+    if (seconds_between(t_status, now) >= 1.0 / options.status_hz) {
+      publish_status(*bus, p, c, options, at_end, frames_in_period, seconds_between(t_status, now));
+      frames_in_period = 0, t_status = now;
     }
     // Sleep until the next frame is due (or 50 ms), listening for commands.
     double wait_s = 0.05;
-    if (!paused && index < last) wait_s = std::min(wait_s, std::max(0.0, (times[static_cast<size_t>(index) + 1] - clock_s) / rate));
-    if (paused && ordered_steps > 0) wait_s = 0;
+    if (!c.paused) wait_s = std::min(wait_s, p.until_next_s(c.rate));
+    if (c.paused && c.ordered_steps > 0) wait_s = 0;
     if (wait_s > 0) bus->wait_for_command(std::chrono::nanoseconds(static_cast<long long>(wait_s * 1e9)));
   }
   if (options.status_line) std::fprintf(stderr, "\n");
-  const double wall_s = std::chrono::duration<double>(Clock::now() - t_begin).count();
+  const double wall_s = seconds_between(t_begin, Clock::now());
   out << "fiberfem replay: " << stop << "; " << published_count << " frames published in " << wall_s << " s ("
       << static_cast<double>(published_count) / std::max(wall_s, 1e-9) << " frames/s)\n";
   return 0;

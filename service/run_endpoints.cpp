@@ -40,6 +40,22 @@ void RunEndpoints::publish_state(unsigned long frame, double time_s, unsigned pa
   state_.write(s);
 }
 
+void RunEndpoints::publish_state(unsigned long frame, double time_s, unsigned parameter_version,
+                                 const Eigen::Ref<const core::Positions>& x, const std::vector<int>& nodes,
+                                 const std::vector<double>& activation) {
+  if (nodes.empty()) {
+    positions_.resize(static_cast<size_t>(x.size()));
+    for (Eigen::Index i = 0; i < x.cols(); ++i)
+      for (int d = 0; d < 3; ++d) positions_[3 * static_cast<size_t>(i) + d] = static_cast<float>(x(d, i));
+  } else {
+    positions_.resize(3 * nodes.size());
+    for (size_t k = 0; k < nodes.size(); ++k)
+      for (int d = 0; d < 3; ++d) positions_[3 * k + d] = static_cast<float>(x(d, nodes[k]));
+  }
+  activation_.assign(activation.begin(), activation.end());
+  publish_state(frame, time_s, parameter_version, positions_, activation_);
+}
+
 void RunEndpoints::publish_status(const StatusData& d) {
   StatusData mine = d;
   mine.run_id = run_id_;

@@ -3,6 +3,7 @@
 /// writers of the topology, states, status and acknowledgements and the reader of
 /// commands, all keyed by the run id (docs/dds.md).
 
+#include "core/types.hpp"
 #include "idl/bus.hpp"
 #include "idl/records.hpp"
 
@@ -39,6 +40,10 @@ class RunEndpoints {
   /// `positions`: 3 floats per state node; `activation`: one per element (may be empty).
   void publish_state(unsigned long frame, double time_s, unsigned parameter_version, std::vector<float>& positions,
                      std::vector<float>& activation);
+  /// The same from the engine's numbers, converted to the wire's floats: `x` 3 x N
+  /// positions, m (of `nodes` only when that is not empty), `activation` per element, 0..1.
+  void publish_state(unsigned long frame, double time_s, unsigned parameter_version, const Eigen::Ref<const core::Positions>& x,
+                     const std::vector<int>& nodes, const std::vector<double>& activation);
   void publish_status(const StatusData& s);
   /// Takes the commands addressed to this run, calls `apply(kind, args, id)` for each and
   /// acknowledges it with the frame and parameter version `stamp()` gives after it. A
@@ -64,6 +69,7 @@ class RunEndpoints {
     unsigned long frame = 0;
     unsigned parameter_version = 0;
   };
+  std::vector<float> positions_, activation_;  // publish_state's conversion buffers
   std::unordered_map<std::string, Answer> answered_;  // by command id, the last kRememberedCommands
   std::deque<std::string> answered_order_;
   long duplicates_ = 0;

@@ -1,11 +1,11 @@
 #pragma once
-/// @file The service (`fiberfem serve`): runs a scene, publishes its topology, states and
-/// status on DDS, applies commands at step boundaries and acknowledges each
-/// (docs/dds.md, docs/commands.md).
+/// @file The service (`fiberfem serve`): runs a scene (a RunDriver), publishes its
+/// topology, states and status on DDS, applies commands at step boundaries and
+/// acknowledges each (docs/dds.md, docs/commands.md).
 
 #include "io/scene.hpp"
+#include "service/run_driver.hpp"
 
-#include <cmath>
 #include <iosfwd>
 #include <string>
 
@@ -29,8 +29,9 @@ struct ServeOptions {
   /// Record from the start (the scene's `archive` key or --archive); start_recording
   /// and stop_recording commands control it while running (docs/archive.md).
   io::ArchiveSettings archive;
-  std::string resume_path;    ///< Start from a checkpoint of this archive (--resume RUN.h5[@t]).
-  double resume_time_s = HUGE_VAL;  ///< The last checkpoint at or before this time; inf: the last.
+  /// Start from an archive's checkpoint (--resume RUN.h5[@t]), with the parameters the
+  /// archived run had.
+  ResumeFrom resume;
   const io::EmbeddedFiles* files = nullptr;  ///< In-memory files of a built-in scene.
   /// @throws std::invalid_argument naming the field.
   void validate() const;

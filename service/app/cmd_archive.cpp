@@ -12,7 +12,7 @@
 #include <memory>
 #include <thread>
 
-namespace fiberfem::service {
+namespace fiberfem::app {
 namespace {
 
 struct ArchiveArgs {
@@ -138,4 +138,4 @@ void add_archive_command(CLI::App& app, int& exit_code) {
   });
 }
 
-}  // namespace fiberfem::service
+}  // namespace fiberfem::app

@@ -19,7 +19,7 @@
 #include <numeric>
 #include <unistd.h>
 
-namespace fiberfem::service {
+namespace fiberfem::app {
 namespace {
 
 using clients::Client;
@@ -55,7 +55,7 @@ void print_status_line(const clients::RunStatus& s, bool same_line) {
 // echo --follow: frames of a run across service restarts and network cuts (the rule in
 // clients/ctl/client.hpp, RunFollower); "lost" and "following" lines say what happened.
 int follow_run(Client& client, const CtlArgs& a) {
-  const StopSignals stop_signals(/*term_too=*/false);
+  const service::StopSignals stop_signals(/*term_too=*/false);
   clients::RunFollower follower(client, a.run_id, milliseconds(static_cast<long>(a.lost_after_s * 1000)));
   const auto timeout = std::chrono::duration<double>(a.timeout_s);
   auto since_run = std::chrono::steady_clock::now();  // when a run was last followed
@@ -119,7 +119,7 @@ int run_ctl(const std::string& what, CtlArgs& a) {
     return r.acked == r.sent && r.duplicate_acks <= r.resent ? 0 : 4;
   }
   if (what == "status") {
-    const StopSignals stop_signals(/*term_too=*/false);
+    const service::StopSignals stop_signals(/*term_too=*/false);
     const bool tty = isatty(fileno(stdout)) != 0;
     int shown = 0;
     do {
@@ -148,7 +148,7 @@ int run_ctl(const std::string& what, CtlArgs& a) {
     return 0;
   }
   if (what == "echo") {
-    const StopSignals stop_signals(/*term_too=*/false);
+    const service::StopSignals stop_signals(/*term_too=*/false);
     long last = -1;
     for (int shown = 0; !stop_signals.caught() && (a.count == 0 || shown < a.count); ++shown) {
       const auto st = client.next_state(run, timeout, last);
@@ -256,4 +256,4 @@ void add_ctl_command(CLI::App& app, int& exit_code) {
   }
 }
 
-}  // namespace fiberfem::service
+}  // namespace fiberfem::app

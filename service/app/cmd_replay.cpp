@@ -11,11 +11,11 @@
 #include <memory>
 #include <unistd.h>
 
-namespace fiberfem::service {
+namespace fiberfem::app {
 
 void add_replay_command(CLI::App& app, int& exit_code) {
   auto* cmd = app.add_subcommand("replay", "Republish an archived run on DDS (as a live run, with a replay flag)");
-  auto o = std::make_shared<ReplayOptions>();
+  auto o = std::make_shared<service::ReplayOptions>();
   cmd->add_option("archive", o->path, "The run archive (HDF5, docs/archive.md)")->required();
   cmd->add_option("--run-id", o->run_id, "Run id (default replay-<scene>-<host>-<pid>)");
   cmd->add_option("--rate", o->rate, "Archive seconds per wall second")->check(CLI::Range(1e-3, 1000.0))->capture_default_str();
@@ -29,7 +29,7 @@ void add_replay_command(CLI::App& app, int& exit_code) {
   cmd->callback([o, &exit_code] {
     o->status_line = isatty(fileno(stderr)) != 0;
     try {
-      exit_code = replay(*o, std::cout);
+      exit_code = service::replay(*o, std::cout);
     } catch (const std::exception& e) {
       std::cerr << "fiberfem replay: " << e.what() << "\n";
       exit_code = 1;
@@ -37,4 +37,4 @@ void add_replay_command(CLI::App& app, int& exit_code) {
   });
 }
 
-}  // namespace fiberfem::service
+}  // namespace fiberfem::app

@@ -4,6 +4,7 @@
 
 #include "io/scene.hpp"
 #include "service/batch_run.hpp"
+#include "service/run_driver.hpp"
 #include "service/builtin_scenes.hpp"
 #include "service/app/commands.hpp"
 
@@ -18,7 +19,7 @@
 #include <memory>
 #include <unistd.h>
 
-namespace fiberfem::service {
+namespace fiberfem::app {
 namespace {
 
 // Shortest text that reads back as `v` (so `--dt 0.005` is `solver.dt=0.005`).
@@ -37,11 +38,11 @@ struct RunArgs {
   double dt = 0, tolerance = 0;
   int threads = 0;
   std::vector<int> cells;
-  BatchOptions o;
+  service::BatchOptions o;
 };
 
 int run_command(CLI::App& run, RunArgs& a) {
-  BatchOptions& o = a.o;
+  service::BatchOptions& o = a.o;
   std::vector<std::string> sets;
   if (run.count("--dt")) sets.push_back("solver.dt=" + format_number(a.dt));
   if (!a.solver.empty()) sets.push_back("solver.method=" + a.solver);
@@ -78,34 +79,26 @@ int run_command(CLI::App& run, RunArgs& a) {
   };
 
   try {
-    if (!a.resume.empty()) {  // RUN.h5[@t]
-      const size_t at = a.resume.rfind('@');
-      o.resume_path = a.resume.substr(0, at);
-      if (at != std::string::npos) {
-        const std::string t = a.resume.substr(at + 1);
-        char* end = nullptr;
-        o.resume_time_s = std::strtod(t.c_str(), &end);
-        if (t.empty() || *end != '\0' || !std::isfinite(o.resume_time_s))
-          throw std::invalid_argument("--resume " + a.resume + ": '" + t + "' is not a time in seconds (RUN.h5@1.5)");
-      }
-      if (!a.archive.empty() && std::filesystem::exists(a.archive) && std::filesystem::exists(o.resume_path) &&
-          std::filesystem::equivalent(a.archive, o.resume_path))
+    if (!a.resume.empty()) {
+      o.resume = service::parse_resume(a.resume);
+      if (!a.archive.empty() && std::filesystem::exists(a.archive) && std::filesystem::exists(o.resume.path) &&
+          std::filesystem::equivalent(a.archive, o.resume.path))
         throw std::invalid_argument("--archive must not be the archive being resumed from (" + a.archive + ")");
       if (a.scene_file.empty()) {
-        o.source = "archive:" + o.resume_path;
-        return run_batch(with_archive(scene_from_archive(o.resume_path, o.overrides)), o, std::cout);
+        o.source = "archive:" + o.resume.path;
+        return service::run_batch(with_archive(service::scene_from_archive(o.resume.path, o.overrides)), o, std::cout);
       }
     }
     if (!a.scene_file.empty()) {
       o.source = a.scene_file;
-      return run_batch(with_archive(io::load_scene(a.scene_file, o.overrides)), o, std::cout);
+      return service::run_batch(with_archive(io::load_scene(a.scene_file, o.overrides)), o, std::cout);
     }
-    if (!builtin_scenes().count(a.builtin)) {
+    if (!service::builtin_scenes().count(a.builtin)) {
       std::cerr << "fiberfem: unknown built-in scene '" << a.builtin << "' (available: cantilever, heart)\n";
       return 2;
     }
     o.source = "builtin:" + a.builtin;
-    return run_batch(with_archive(load_builtin_scene(a.builtin, o.overrides)), o, std::cout);
+    return service::run_batch(with_archive(service::load_builtin_scene(a.builtin, o.overrides)), o, std::cout);
   } catch (const std::exception& e) {
     std::cerr << "fiberfem: " << e.what() << "\n";
     return 1;
@@ -117,7 +110,7 @@ int run_command(CLI::App& run, RunArgs& a) {
 void add_run_command(CLI::App& app, int& exit_code) {
   auto* run = app.add_subcommand("run", "Run a scene in batch (no bus)");
   auto a = std::make_shared<RunArgs>();
-  BatchOptions& o = a->o;
+  service::BatchOptions& o = a->o;
   run->add_option("scene", a->scene_file, "Scene file (YAML, docs/scenes.md); without one, --builtin runs");
   run->add_option("--scene", a->scene_file, "Same as the positional scene file");
   run->add_option("--builtin", a->builtin, "Built-in scene when no file is given: cantilever | heart")->capture_default_str();
@@ -155,4 +148,4 @@ void add_run_command(CLI::App& app, int& exit_code) {
   run->callback([run, a, &exit_code] { exit_code = run_command(*run, *a); });
 }
 
-}  // namespace fiberfem::service
+}  // namespace fiberfem::app

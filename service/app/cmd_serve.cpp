@@ -14,7 +14,7 @@
 #include <memory>
 #include <unistd.h>
 
-namespace fiberfem::service {
+namespace fiberfem::app {
 namespace {
 
 struct ServeArgs {
@@ -23,24 +23,14 @@ struct ServeArgs {
   double flush_seconds = -1;
   std::vector<std::string> overrides;
   bool fast = false;
-  ServeOptions o;
+  service::ServeOptions o;
 };
 
 int serve_command(CLI::App& cmd, ServeArgs& a) {
   a.o.realtime = !a.fast;
   a.o.status_line = isatty(fileno(stderr)) != 0;
   try {
-    if (!a.resume.empty()) {  // RUN.h5[@t]
-      const size_t at = a.resume.rfind('@');
-      a.o.resume_path = a.resume.substr(0, at);
-      if (at != std::string::npos) {
-        const std::string t = a.resume.substr(at + 1);
-        char* end = nullptr;
-        a.o.resume_time_s = std::strtod(t.c_str(), &end);
-        if (t.empty() || *end != '\0' || !std::isfinite(a.o.resume_time_s))
-          throw std::invalid_argument("--resume " + a.resume + ": '" + t + "' is not a time in seconds (RUN.h5@1.5)");
-      }
-    }
+    if (!a.resume.empty()) a.o.resume = service::parse_resume(a.resume);
     if (cmd.count("--threads")) a.overrides.insert(a.overrides.begin(), "solver.threads=" + std::to_string(a.threads));
     io::Scene scene = [&] {
       if (!a.scene_file.empty()) {
@@ -48,8 +38,8 @@ int serve_command(CLI::App& cmd, ServeArgs& a) {
         return io::load_scene(a.scene_file, a.overrides);
       }
       a.o.source = "builtin:" + a.builtin;
-      a.o.files = &embedded_files();
-      return load_builtin_scene(a.builtin, a.overrides);
+      a.o.files = &service::embedded_files();
+      return service::load_builtin_scene(a.builtin, a.overrides);
     }();
     for (const std::string& w : scene.warnings) std::cerr << "fiberfem: warning: " << w << "\n";
     // Recording: the scene's archive key, then the command line over it.
@@ -59,7 +49,7 @@ int serve_command(CLI::App& cmd, ServeArgs& a) {
       throw std::invalid_argument("--flush-frames and --flush-seconds need --archive RUN.h5 (or the scene's archive key)");
     if (cmd.count("--flush-frames")) a.o.archive.flush_frames = a.flush_frames;
     if (cmd.count("--flush-seconds")) a.o.archive.flush_seconds = a.flush_seconds;
-    return serve(scene, a.o, std::cout);
+    return service::serve(scene, a.o, std::cout);
   } catch (const std::exception& e) {
     std::cerr << "fiberfem serve: " << e.what() << "\n";
     return 1;
@@ -100,4 +90,4 @@ void add_serve_command(CLI::App& app, int& exit_code) {
   cmd->callback([cmd, a, &exit_code] { exit_code = serve_command(*cmd, *a); });
 }
 
-}  // namespace fiberfem::service
+}  // namespace fiberfem::app

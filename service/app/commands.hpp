@@ -7,7 +7,7 @@ namespace CLI {
 class App;
 }
 
-namespace fiberfem::service {
+namespace fiberfem::app {
 
 /// `fiberfem run`: a scene in batch, without the bus (cmd_run.cpp).
 void add_run_command(CLI::App& app, int& exit_code);
@@ -28,4 +28,4 @@ void add_archive_command(CLI::App& app, int& exit_code);
 /// when FIBERFEM_WITH_OSMESA is on (compile definition FIBERFEM_HAVE_RENDER).
 void add_render_command(CLI::App& app, int& exit_code);
 
-}  // namespace fiberfem::service
+}  // namespace fiberfem::app

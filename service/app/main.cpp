@@ -10,19 +10,19 @@ int main(int argc, char** argv) {
   CLI::App app{"fiberfem: fiber-incorporated corotational FEM"};
   app.require_subcommand(1);
   int exit_code = 0;
-  fiberfem::service::add_run_command(app, exit_code);
+  fiberfem::app::add_run_command(app, exit_code);
 #ifdef FIBERFEM_WITH_DDS
-  fiberfem::service::add_serve_command(app, exit_code);
-  fiberfem::service::add_ctl_command(app, exit_code);
+  fiberfem::app::add_serve_command(app, exit_code);
+  fiberfem::app::add_ctl_command(app, exit_code);
 #endif
 #ifdef FIBERFEM_HAVE_ARCHIVE
-  fiberfem::service::add_archive_command(app, exit_code);
+  fiberfem::app::add_archive_command(app, exit_code);
 #if defined(FIBERFEM_WITH_DDS)
-  fiberfem::service::add_replay_command(app, exit_code);
+  fiberfem::app::add_replay_command(app, exit_code);
 #endif
 #endif
 #ifdef FIBERFEM_HAVE_RENDER
-  fiberfem::service::add_render_command(app, exit_code);
+  fiberfem::app::add_render_command(app, exit_code);
 #endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;
