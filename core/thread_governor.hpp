@@ -32,6 +32,10 @@ class ThreadGovernor {
   /// where the current count wins, probes cost about 2 % of a 130-step run and 1 % of a
   /// 1,000-step one (one slower count for kProbeSteps steps each time).
   static constexpr int kMinInterval = 64;
+  /// Steps before the first probe: soon, so that a machine whose other cores are taken
+  /// from the start (every step slow alike, no stall to notice) is left within a short
+  /// run; once, at the cost of kProbeSteps steps on fewer threads on a quiet machine.
+  static constexpr int kFirstProbe = 8;
   /// Comparable steps at a count before its running mean is trusted (stalls and probes
   /// wait for them).
   static constexpr int kSettleSteps = 8;
@@ -71,7 +75,7 @@ class ThreadGovernor {
   int current_ = 1;
   double mean_s_ = 0;  // running mean of the comparable step times at current_
   int measured_ = 0;   // comparable steps at current_ since it became current (capped)
-  int until_probe_ = kMinInterval;
+  int until_probe_ = kFirstProbe;
   int interval_ = kMinInterval;
   bool probe_down_ = true;  // which neighbour the next periodic probe tries
   bool probing_ = false;
