@@ -3,11 +3,12 @@
 /// (PHYSICS.md sections 4 and 5) with rollback and substepping on failure.
 
 #include "core/element_cache.hpp"
+#include "core/element_model.hpp"
 #include "core/linear_solver.hpp"
 #include "core/model.hpp"
 #include "core/rotation.hpp"
+#include "core/simulator_state.hpp"
 #include "core/sparse_system.hpp"
-#include "core/spencer_element.hpp"
 #include "core/thread_governor.hpp"
 
 #include <Eigen/Geometry>
@@ -94,48 +95,12 @@ struct Energies {
   double gravity_j = 0;  ///< -sum m g.x (relative to the origin).
 };
 
-/// Everything later steps depend on besides the model, the settings and the solver's
-/// memory: the Simulator keeps its state in exactly this struct, so a checkpoint copies it
-/// whole and a restore assigns it whole (a new field cannot be left out of one of them).
-/// Plain data, no I/O.
-struct SimulatorState {
-  double time_s = 0;                 ///< Simulation time, s.
-  long step_count = 0;               ///< Accepted steps so far.
-  Eigen::VectorXd x;                 ///< Positions, 3N, m.
-  Eigen::VectorXd v;                 ///< Velocities, 3N, m/s.
-  Eigen::VectorXd vfree;             ///< Last solution over the free DOFs, m/s.
-  Eigen::VectorXd vfree_prev;        ///< The one before (warm-start extrapolation), m/s.
-  double last_h_s = -1;              ///< Step size of the last solve, s (-1: none yet).
-  std::vector<Eigen::Quaterniond> q; ///< Warm-start polar rotation per element.
-  std::vector<Mat3> R;               ///< Rotation per element.
-  bool rotations_current = false;    ///< R belongs to x (computed by the last step's checks).
-  int inverted_current = 0;          ///< Inverted elements counted with R.
-  std::vector<Eigen::Quaterniond> block_q;  ///< Warm-start rotation per free node block.
-  std::vector<Mat3> block_R;         ///< Rotation per free node block.
-  std::vector<double> active_tension_pa;   ///< Per element, Pa (empty: contraction off).
-  Eigen::VectorXd f_ext;             ///< External force of the current (sub)step, 3N, N.
-  double energy_floor_j = 0;         ///< Round-off scale of the energy check, J.
-  double contraction_origin_s = 0;   ///< Where beats are counted from (set_contraction), s.
-};
-
-/// A SimulatorState with what a restore checks it against and the linear solver's memory:
-/// restoring it into a Simulator built from the same model and settings continues the run
-/// bit-for-bit (Simulator::checkpoint, Simulator::restore).
-struct SimulatorCheckpoint : SimulatorState {
-  double dt_s = 0;                   ///< The time step when saved, s (restore checks it).
-  int num_nodes = 0;                 ///< Nodes of the model (restore checks it).
-  int num_elements = 0;              ///< Elements of the model (restore checks it).
-  LinearSolverState solver;          ///< Recycled solutions and lagged factors.
-};
-
+/// The integrator: each step asks the element model (core/element_model.hpp) for one
+/// element pass, adds the mass terms, solves for the new velocity and checks the result.
+/// Files by job: construction and state (simulator.cpp), the step and its retries
+/// (simulator_step.cpp), checkpoints (simulator_checkpoint.cpp), energies
+/// (simulator_energy.cpp), changes between steps (simulator_setters.cpp).
 class Simulator {
-  // One cache line per chunk of the element loop for its sums (chunks of one colour run
-  // on different threads at once).
-  struct alignas(64) ChunkAcc {
-    double energy = 0;
-    int inverted = 0;
-  };
-
  public:
   /// Validates the model and settings and precomputes every element cache.
   /// @throws std::invalid_argument naming what is wrong.
@@ -215,36 +180,36 @@ class Simulator {
   double contraction_origin_s() const { return st_.contraction_origin_s; }
 
  private:
+  // The step (simulator_step.cpp).
   bool advance(double h, bool last_chance, StepReport& r, std::string& why);
+  void assemble_step(double h, StepReport& r);
+  bool solve_velocity(double h, StepReport& r, std::string& why);
+  bool check_step(double h, double kinetic, double elastic, bool last_chance, StepReport& r, std::string& why);
+  double assemble_elements(double h, double t_end_s);
+  void update_active_tension(double t_end_s);
+  // Construction and state (simulator.cpp).
   void update_node_masses();
   void apply_fixed();
-  void update_block_rotations();
-  double assemble_elements(double h, double t_end_s);
-  Mat3 element_gradient(int e) const;
-  Mat3 element_edges(int e) const;
-  int rotate_elements(const int* elems, int n, const Mat3* F);
+  void refresh_external_forces();
+  /// @throws std::invalid_argument when `s` cannot work on this system (amg needs whole node blocks).
+  void check_solver_fits(const SolverSettings& s) const;
 
   Model model_;
   SimulatorState st_;  // everything a checkpoint saves besides the solver's memory
   SimulatorSettings settings_;
   ElementCaches caches_;                  // X and Dm_inv (no K^e, no g^e)
-  std::vector<SpencerElement> elements_;  // what the step reads per element
-  std::vector<SpencerConstants> region_law_;  // per region
   SparseSystem sys_;
+  // What the elements contribute (forces, tangent blocks, energy, rotations): the
+  // corotated linear tetrahedron. Reads model_.mesh.
+  std::unique_ptr<ElementModel> elements_;
   std::unique_ptr<LinearSolver> solver_;
-  std::vector<double> beta_e_;      // per element stiffness damping, s
   Eigen::VectorXd mass_;            // per node, kg
   Eigen::VectorXd mass_alpha_;      // per node, sum alpha_e m_e / 4, kg/s
   Eigen::VectorXd f_ext_const_;     // 3N, its part that never changes
   std::vector<const SurfaceLoad*> varying_loads_;  // ramped or follower (into model_.loads)
-  void refresh_external_forces();
   TwitchTable tension_table_;       // the contraction's normalised beat, tabulated
-  // Node blocks of the free DOFs (for the warp preconditioner): node of each block, the
-  // elements around each node (CSR), and each block's rotation.
+  // Node of each free node block (for the warp and amg preconditioners).
   std::vector<int> block_node_;
-  std::vector<int> node_elem_start_, node_elems_;
-  /// @throws std::invalid_argument when `s` cannot work on this system (amg needs whole node blocks).
-  void check_solver_fits(const SolverSettings& s) const;
   Eigen::VectorXd block_x_;  // node-block positions for the amg preconditioner
   // work
   Eigen::VectorXd f_, rhs_;
@@ -257,10 +222,9 @@ class Simulator {
   bool assembled_ahead_ = false;
   double ahead_h_ = 0;
   double ahead_elastic_j_ = 0;
-  std::vector<ChunkAcc> acc_;
   ThreadGovernor governor_;  // threads of each step when settings_.threads is 0
   Eigen::VectorXd x0_, v0_, vfree0_, vprev0_;  // state at the start of a step (rollback)
-  std::vector<Eigen::Quaterniond> q0_;       // energy of a uniform strain 1e-8 (round-off scale)
+  std::vector<Eigen::Quaterniond> q0_;       // warm-start rotations at the start of a step (rollback)
 };
 
 }  // namespace fiberfem::core

@@ -8,24 +8,81 @@
 
 namespace fiberfem::core {
 
-SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>& fixed_dofs,
-                           int chunk_size, LoopSchedule schedule)
-    : tets_(mesh.tets()), chunk_size_(std::max(1, chunk_size)) {
-  const int n = mesh.num_nodes();
-  num_dofs_ = 3 * n;
-  free_index_.assign(static_cast<size_t>(num_dofs_), -1);
-  for (int d = 0; d < num_dofs_; ++d)
-    if (fixed_dofs.empty() || !fixed_dofs[static_cast<size_t>(d)]) free_index_[static_cast<size_t>(d)] = num_free_++;
+namespace {
 
-  // Pattern: node adjacency through elements, expanded to 3x3 blocks over free DOFs.
-  std::vector<std::vector<int>> adj(static_cast<size_t>(n));
-  for (const Tet& t : tets_)
+// Node adjacency through elements: for each node, the sorted nodes it shares an element
+// with (itself included).
+std::vector<std::vector<int>> node_adjacency(int num_nodes, const std::vector<Tet>& tets) {
+  std::vector<std::vector<int>> adj(static_cast<size_t>(num_nodes));
+  for (const Tet& t : tets)
     for (int a : t)
       for (int b : t) adj[static_cast<size_t>(a)].push_back(b);
   for (auto& l : adj) {
     std::sort(l.begin(), l.end());
     l.erase(std::unique(l.begin(), l.end()), l.end());
   }
+  return adj;
+}
+
+Vec3 centroid(const TetMesh& mesh, const Tet& t) {
+  Vec3 c = Vec3::Zero();
+  for (int v : t) c += 0.25 * mesh.rest_positions().col(v);
+  return c;
+}
+
+// The Morton key of each element's centroid in the mesh's bounding box, computed into
+// `keys` when first needed (empty) and kept there.
+const std::vector<std::uint64_t>& morton_keys(const TetMesh& mesh, const std::vector<Tet>& tets,
+                                              std::vector<std::uint64_t>& keys) {
+  const int ne = static_cast<int>(tets.size());
+  if (!keys.empty() || ne == 0) return keys;
+  auto spread = [](std::uint64_t v) {  // 21 bits -> every third of 63
+    v &= 0x1fffff;
+    v = (v | v << 32) & 0x1f00000000ffffULL;
+    v = (v | v << 16) & 0x1f0000ff0000ffULL;
+    v = (v | v << 8) & 0x100f00f00f00f00fULL;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+    v = (v | v << 2) & 0x1249249249249249ULL;
+    return v;
+  };
+  const auto bounds = mesh.bounding_box();
+  const Vec3 lo = bounds.first, span = (bounds.second - bounds.first).cwiseMax(1e-300);
+  keys.resize(static_cast<size_t>(ne));
+  for (int e = 0; e < ne; ++e) {
+    const Vec3 q = ((centroid(mesh, tets[static_cast<size_t>(e)]) - lo).array() / span.array()).cwiseMax(0.0).cwiseMin(1.0) *
+                   2097151.0;
+    keys[static_cast<size_t>(e)] = spread(static_cast<std::uint64_t>(q.x())) | spread(static_cast<std::uint64_t>(q.y())) << 1 |
+                                   spread(static_cast<std::uint64_t>(q.z())) << 2;
+  }
+  return keys;
+}
+
+}  // namespace
+
+SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>& fixed_dofs,
+                           int chunk_size, LoopSchedule schedule)
+    : tets_(mesh.tets()), chunk_size_(std::max(1, chunk_size)) {
+  number_free_dofs(mesh.num_nodes(), fixed_dofs);
+  const std::vector<std::vector<int>> adj = node_adjacency(mesh.num_nodes(), tets_);
+  build_pattern(adj);
+  build_scatter();
+  build_blocks(adj);
+  std::vector<std::uint64_t> morton;  // per element, computed when first needed
+  order_chunks(mesh, morton);
+  if (schedule != LoopSchedule::chunks) order_runs(mesh, schedule, morton);
+  plan_zeroing(mesh.num_nodes());
+}
+
+void SparseSystem::number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs) {
+  num_dofs_ = 3 * num_nodes;
+  free_index_.assign(static_cast<size_t>(num_dofs_), -1);
+  for (int d = 0; d < num_dofs_; ++d)
+    if (fixed_dofs.empty() || !fixed_dofs[static_cast<size_t>(d)]) free_index_[static_cast<size_t>(d)] = num_free_++;
+}
+
+// The pattern: node adjacency expanded to 3x3 blocks over the free DOFs.
+void SparseSystem::build_pattern(const std::vector<std::vector<int>>& adj) {
+  const int n = static_cast<int>(adj.size());
   A_.resize(num_free_, num_free_);
   Eigen::VectorXi nnz_per_row = Eigen::VectorXi::Zero(num_free_);
   for (int i = 0; i < n; ++i)
@@ -49,14 +106,19 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
         }
     }
   A_.makeCompressed();
+}
 
-  auto value_index = [&](int r, int col) {
-    const int* outer = A_.outerIndexPtr();
-    const int* inner = A_.innerIndexPtr();
-    const int* p = std::lower_bound(inner + outer[r], inner + outer[r + 1], col);
-    if (p == inner + outer[r + 1] || *p != col) throw std::logic_error("sparse pattern lookup failed");
-    return static_cast<int>(p - inner);
-  };
+int SparseSystem::value_index(int r, int col) const {
+  const int* outer = A_.outerIndexPtr();
+  const int* inner = A_.innerIndexPtr();
+  const int* p = std::lower_bound(inner + outer[r], inner + outer[r + 1], col);
+  if (p == inner + outer[r + 1] || *p != col) throw std::logic_error("sparse pattern lookup failed");
+  return static_cast<int>(p - inner);
+}
+
+// Where each element's entries go in the values (see block_scatter_, general_scatter_),
+// and each free DOF's diagonal entry.
+void SparseSystem::build_scatter() {
   diag_.resize(static_cast<size_t>(num_free_));
   for (int r = 0; r < num_free_; ++r) diag_[static_cast<size_t>(r)] = value_index(r, r);
   block_scatter_.assign(tets_.size() * kBlockIndices, 0);
@@ -93,102 +155,78 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
             s[(3 * b + d) * 12 + 3 * a + c] = value_index(r, col);
           }
   }
+}
 
-  build_blocks(adj);
-
-  // Chunks of consecutive elements, coloured so that no two chunks of a colour share a
-  // node. The mesh's own element order is kept when it is local (the box generator's,
-  // cell by cell, which also follows its node numbering); an order that scatters chunks
-  // over the body (a mesh generator's Delaunay order: measured 33 ms instead of 1.5 ms to
-  // assemble a 7,105-tet heart, nearly every chunk in its own colour) is replaced by the
-  // Morton order of the element centroids.
+// Chunks of consecutive elements, coloured so that no two chunks of a colour share a
+// node. The mesh's own element order is kept when it is local (the box generator's,
+// cell by cell, which also follows its node numbering); an order that scatters chunks
+// over the body (a mesh generator's Delaunay order: measured 33 ms instead of 1.5 ms to
+// assemble a 7,105-tet heart, nearly every chunk in its own colour) is replaced by the
+// Morton order of the element centroids.
+void SparseSystem::order_chunks(const TetMesh& mesh, std::vector<std::uint64_t>& morton) {
+  const int n = mesh.num_nodes();
   const int ne = static_cast<int>(tets_.size());
   order_.resize(static_cast<size_t>(ne));
   for (int e = 0; e < ne; ++e) order_[static_cast<size_t>(e)] = e;
-  const auto bounds = mesh.bounding_box();
-  const Vec3 lo = bounds.first, span = (bounds.second - bounds.first).cwiseMax(1e-300);
-  auto centroid = [&](int e) {
-    Vec3 c = Vec3::Zero();
-    for (int v : tets_[static_cast<size_t>(e)]) c += 0.25 * mesh.rest_positions().col(v);
-    return c;
-  };
-  std::vector<std::uint64_t> morton;  // per element, computed when first needed
-  auto morton_keys = [&]() -> const std::vector<std::uint64_t>& {
-    if (!morton.empty() || ne == 0) return morton;
-    auto spread = [](std::uint64_t v) {  // 21 bits -> every third of 63
-      v &= 0x1fffff;
-      v = (v | v << 32) & 0x1f00000000ffffULL;
-      v = (v | v << 16) & 0x1f0000ff0000ffULL;
-      v = (v | v << 8) & 0x100f00f00f00f00fULL;
-      v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
-      v = (v | v << 2) & 0x1249249249249249ULL;
-      return v;
-    };
-    morton.resize(static_cast<size_t>(ne));
-    for (int e = 0; e < ne; ++e) {
-      const Vec3 q = ((centroid(e) - lo).array() / span.array()).cwiseMax(0.0).cwiseMin(1.0) * 2097151.0;
-      morton[static_cast<size_t>(e)] = spread(static_cast<std::uint64_t>(q.x())) | spread(static_cast<std::uint64_t>(q.y())) << 1 |
-                                       spread(static_cast<std::uint64_t>(q.z())) << 2;
-    }
-    return morton;
-  };
   colour_chunks(n);
-  if (colour_chunks_.size() > 16) {
-    const std::vector<int> natural_order = order_;
-    const size_t natural_colours = colour_chunks_.size();
-    const std::vector<std::uint64_t>& key = morton_keys();
-    std::stable_sort(order_.begin(), order_.end(),
-                     [&](int a, int b) { return key[static_cast<size_t>(a)] < key[static_cast<size_t>(b)]; });
+  if (colour_chunks_.size() <= 16) return;
+  const std::vector<int> natural_order = order_;
+  const size_t natural_colours = colour_chunks_.size();
+  const std::vector<std::uint64_t>& key = morton_keys(mesh, tets_, morton);
+  std::stable_sort(order_.begin(), order_.end(),
+                   [&](int a, int b) { return key[static_cast<size_t>(a)] < key[static_cast<size_t>(b)]; });
+  colour_chunks(n);
+  if (colour_chunks_.size() >= natural_colours) {  // keep whichever needs fewer colours
+    order_ = natural_order;
     colour_chunks(n);
-    if (colour_chunks_.size() >= natural_colours) {  // keep whichever needs fewer colours
-      order_ = natural_order;
-      colour_chunks(n);
-    }
   }
-  // Long runs instead of chunks (LoopSchedule): kRuns runs, each a contiguous range of the
-  // chunk order, coloured as wholes. In a local order along the body run r shares nodes
-  // with r - 1 and r + 1 only: two colours of kRuns / 2 runs. Each thread walks its
-  // runs in order, so the blocks of a node are written by its elements close together in
-  // time instead of once per colour from memory (the 245,760-tet beam's element pass on one
-  // thread: 85-100 ms coloured by chunks, 64-72 ms in order). An order whose runs meet in
-  // more places (Morton's octants all share the centre) is replaced by slabs across the
-  // longest side of the bounding box, one per run, each in Morton order.
-  if (schedule != LoopSchedule::chunks) {
-    const int num_chunks = (ne + chunk_size_ - 1) / chunk_size_;
-    const int num_runs = kRuns;
-    const int run_chunks = std::max(1, (num_chunks + num_runs - 1) / num_runs);
-    const bool large = static_cast<long>(ne) >= static_cast<long>(kRunMinElements) * num_runs;
-    if (schedule == LoopSchedule::runs || (large && run_chunks > 1)) {
-      const auto chunk_order = order_;
+}
+
+// Long runs instead of chunks (LoopSchedule): kRuns runs, each a contiguous range of the
+// chunk order, coloured as wholes. In a local order along the body run r shares nodes
+// with r - 1 and r + 1 only: two colours of kRuns / 2 runs. Each thread walks its
+// runs in order, so the blocks of a node are written by its elements close together in
+// time instead of once per colour from memory (the 245,760-tet beam's element pass on one
+// thread: 85-100 ms coloured by chunks, 64-72 ms in order). An order whose runs meet in
+// more places (Morton's octants all share the centre) is replaced by slabs across the
+// longest side of the bounding box, one per run, each in Morton order.
+void SparseSystem::order_runs(const TetMesh& mesh, LoopSchedule schedule, std::vector<std::uint64_t>& morton) {
+  const int n = mesh.num_nodes();
+  const int ne = static_cast<int>(tets_.size());
+  const int num_chunks = (ne + chunk_size_ - 1) / chunk_size_;
+  const int num_runs = kRuns;
+  const int run_chunks = std::max(1, (num_chunks + num_runs - 1) / num_runs);
+  const bool large = static_cast<long>(ne) >= static_cast<long>(kRunMinElements) * num_runs;
+  if (!(schedule == LoopSchedule::runs || (large && run_chunks > 1))) return;
+  const auto chunk_order = order_;
+  colour_chunks(n, run_chunks);
+  if (colour_chunks_.size() > 2) {
+    const auto run_order = order_;
+    const size_t run_colours = colour_chunks_.size();
+    const auto bounds = mesh.bounding_box();
+    const Vec3 span = (bounds.second - bounds.first).cwiseMax(1e-300);
+    int axis = 0;
+    span.maxCoeff(&axis);
+    std::vector<double> along(static_cast<size_t>(ne));
+    for (int e = 0; e < ne; ++e) along[static_cast<size_t>(e)] = centroid(mesh, tets_[static_cast<size_t>(e)])(axis);
+    for (int e = 0; e < ne; ++e) order_[static_cast<size_t>(e)] = e;
+    std::stable_sort(order_.begin(), order_.end(),
+                     [&](int a, int b) { return along[static_cast<size_t>(a)] < along[static_cast<size_t>(b)]; });
+    const std::vector<std::uint64_t>& key = morton_keys(mesh, tets_, morton);
+    const int run_elements = run_chunks * chunk_size_;
+    for (int begin = 0; begin < ne; begin += run_elements)
+      std::stable_sort(order_.begin() + begin, order_.begin() + std::min(begin + run_elements, ne),
+                       [&](int a, int b) { return key[static_cast<size_t>(a)] < key[static_cast<size_t>(b)]; });
+    colour_chunks(n, run_chunks);
+    if (colour_chunks_.size() >= run_colours) {
+      order_ = run_order;
       colour_chunks(n, run_chunks);
-      if (colour_chunks_.size() > 2) {
-        const auto run_order = order_;
-        const size_t run_colours = colour_chunks_.size();
-        int axis = 0;
-        span.maxCoeff(&axis);
-        std::vector<double> along(static_cast<size_t>(ne));
-        for (int e = 0; e < ne; ++e) along[static_cast<size_t>(e)] = centroid(e)(axis);
-        for (int e = 0; e < ne; ++e) order_[static_cast<size_t>(e)] = e;
-        std::stable_sort(order_.begin(), order_.end(),
-                         [&](int a, int b) { return along[static_cast<size_t>(a)] < along[static_cast<size_t>(b)]; });
-        const std::vector<std::uint64_t>& key = morton_keys();
-        const int run_elements = run_chunks * chunk_size_;
-        for (int begin = 0; begin < ne; begin += run_elements)
-          std::stable_sort(order_.begin() + begin, order_.begin() + std::min(begin + run_elements, ne),
-                           [&](int a, int b) { return key[static_cast<size_t>(a)] < key[static_cast<size_t>(b)]; });
-        colour_chunks(n, run_chunks);
-        if (colour_chunks_.size() >= run_colours) {
-          order_ = run_order;
-          colour_chunks(n, run_chunks);
-        }
-      }
-      if (schedule == LoopSchedule::automatic && colour_chunks_.size() > 3) {  // chunks after all
-        order_ = chunk_order;
-        colour_chunks(n);
-      }
     }
   }
-  plan_zeroing(n);
+  if (schedule == LoopSchedule::automatic && colour_chunks_.size() > 3) {  // chunks after all
+    order_ = chunk_order;
+    colour_chunks(n);
+  }
 }
 
 void SparseSystem::plan_zeroing(int n) {

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -173,6 +174,16 @@ class SparseSystem {
   std::vector<int> free_index_;
   std::vector<Tet> tets_;
   std::vector<int> order_;  // elements in chunk order (the mesh's, or Morton order of centroids)
+  // The constructor's steps, in order (sparse_system.cpp).
+  void number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs);
+  void build_pattern(const std::vector<std::vector<int>>& adjacency);
+  void build_scatter();
+  /// Chunk order: the mesh's element order, or Morton order when that needs fewer colours.
+  void order_chunks(const TetMesh& mesh, std::vector<std::uint64_t>& morton);
+  /// Runs of chunks instead (LoopSchedule::runs, or automatic on large meshes).
+  void order_runs(const TetMesh& mesh, LoopSchedule schedule, std::vector<std::uint64_t>& morton);
+  /// Position of entry (r, col) in the values. @throws std::logic_error if not in the pattern.
+  int value_index(int r, int col) const;
   /// Greedy colouring of units of `run_chunks` consecutive chunks (a unit is one task);
   /// fills colour_chunks_ and colour_tasks_.
   void colour_chunks(int num_nodes, int run_chunks = 1);

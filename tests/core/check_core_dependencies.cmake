@@ -1,7 +1,7 @@
 # Fails if any file in core/ includes a header from outside Eigen, OpenMP, the standard
 # library or core/ itself (no file formats, DDS, HDF5, logging, rendering in the engine).
 file(GLOB_RECURSE sources ${CORE_DIR}/*.hpp ${CORE_DIR}/*.cpp)
-# dlfcn.h: linear_solver.cpp looks up openblas_set_num_threads (no I/O; see there).
+# dlfcn.h: solvers/cholesky_factor.cpp looks up openblas_set_num_threads (no I/O; see there).
 # amgcl/: header-only algebraic multigrid (amg_preconditioner.cpp; its math only, no amgcl/io).
 set(allowed "^(Eigen/|amgcl/(adapter|backend|coarsening|relaxation|value_type|amg)|omp\\.h|dlfcn\\.h|core/|[a-z_]+$|cmath|cstdint|cstdio|cstddef|cstdlib|cstring|climits)")
 set(bad "")

@@ -1,0 +1,256 @@
+#include "core/corotated_linear_model.hpp"
+
+#include "core/parallel.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <utility>
+
+namespace fiberfem::core {
+
+CorotatedLinearModel::CorotatedLinearModel(const Model& model, const ElementCaches& caches, std::vector<int> block_nodes)
+    : mesh_(model.mesh), block_node_(std::move(block_nodes)) {
+  const int ne = mesh_.num_elements();
+  elements_.resize(static_cast<size_t>(ne));
+  parallel_for(ne, [&](int e) {
+    const size_t i = static_cast<size_t>(e);
+    elements_[i].Dm_inv = caches.Dm_inv[i];
+    for (int j = 0; j < 3; ++j) elements_[i].Dm.col(j) = caches.X[i].segment<3>(3 * (j + 1)) - caches.X[i].segment<3>(0);
+    elements_[i].fiber = model.fibers[i];
+    elements_[i].volume = mesh_.rest_volume(e);
+  });
+  for (const Material& m : model.region_materials) region_law_.push_back(SpencerConstants::of(m));
+  beta_e_.assign(static_cast<size_t>(ne), 0.0);
+  if (!model.region_damping.empty())
+    for (int e = 0; e < ne; ++e)
+      beta_e_[static_cast<size_t>(e)] =
+          model.region_damping[static_cast<size_t>(mesh_.regions()[static_cast<size_t>(e)])].stiffness_s;
+  // The elements around each node (CSR), for the node-block rotations.
+  const int nn = mesh_.num_nodes();
+  node_elem_start_.assign(static_cast<size_t>(nn) + 1, 0);
+  for (const Tet& t : mesh_.tets())
+    for (int n : t) ++node_elem_start_[static_cast<size_t>(n) + 1];
+  for (int n = 0; n < nn; ++n) node_elem_start_[static_cast<size_t>(n) + 1] += node_elem_start_[static_cast<size_t>(n)];
+  node_elems_.resize(static_cast<size_t>(node_elem_start_.back()));
+  std::vector<int> fill(node_elem_start_.begin(), node_elem_start_.end() - 1);
+  for (int e = 0; e < ne; ++e)
+    for (int n : mesh_.tets()[static_cast<size_t>(e)]) node_elems_[static_cast<size_t>(fill[static_cast<size_t>(n)]++)] = e;
+}
+
+// Ds - Dm of element e at positions x (its edges' displacements), m.
+Mat3 CorotatedLinearModel::element_edges(const Eigen::VectorXd& x, int e) const {
+  const size_t i = static_cast<size_t>(e);
+  const Tet& t = mesh_.tets()[i];
+  const Mat3& Dm = elements_[i].Dm;
+  Mat3 D;
+  const Vec3 x0 = x.segment<3>(3 * t[0]);
+  for (int j = 0; j < 3; ++j) D.col(j) = (x.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0) - Dm.col(j);
+  return D;
+}
+
+// Deformation gradient of element e at positions x, as F = I + (Ds - Dm) Dm^-1: the
+// round-off is relative to the displacement (F is exactly I at rest, where Ds Dm^-1
+// would leave 1e-16 of strain and a non-zero energy).
+Mat3 CorotatedLinearModel::element_gradient(const Eigen::VectorXd& x, int e) const {
+  Mat3 F = element_edges(x, e) * elements_[static_cast<size_t>(e)].Dm_inv;
+  F.diagonal().array() += 1.0;
+  return F;
+}
+
+// Rotations of elements elems[0..n-1] (n <= 4) from their F into st.R (and the warm-start
+// st.q); returns how many are inverted (det F <= 0).
+int CorotatedLinearModel::rotate_elements(const ElementPass& pass, SimulatorState& st, const int* elems, int n,
+                                          const Mat3* F) {
+  int inverted = 0;
+  for (int l = 0; l < n; ++l) inverted += F[l].determinant() <= 0 ? 1 : 0;
+  if (!pass.corotation) {
+    for (int l = 0; l < n; ++l) st.R[static_cast<size_t>(elems[l])] = Mat3::Identity();
+  } else if (pass.rotation == RotationMethod::polar) {
+    Eigen::Quaterniond* q[4];
+    Mat3* R[4];
+    for (int l = 0; l < n; ++l) {
+      q[l] = &st.q[static_cast<size_t>(elems[l])];
+      R[l] = &st.R[static_cast<size_t>(elems[l])];
+    }
+    rotation_polar_batch(F, q, R, n, pass.polar_tolerance_rad);
+  } else {
+    for (int l = 0; l < n; ++l) st.R[static_cast<size_t>(elems[l])] = rotation_svd(F[l]);
+  }
+  return inverted;
+}
+
+// What linearised backward Euler (PHYSICS.md section 5) needs of element e at the current
+// positions: its rotation R, the elastic force f_el = -R K^e (R^T x - X) = -V R sigma g_a,
+// the active force -T_a R g^e (section 6), the energy V sigma : eps / 2 and the warped
+// blocks (h beta_e + h^2) R K^e R^T.
+double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& st, SparseSystem& sys, Eigen::VectorXd& f,
+                                      Eigen::VectorXd& f_active) {
+  const double h = pass.h_s;
+  const Eigen::VectorXd& x = st.x;
+  // Sums per chunk of the loop, added in chunk order below: the same bits on any thread count.
+  acc_.resize(static_cast<size_t>(sys.num_chunks()));  // no allocation after the first step
+  std::fill(acc_.begin(), acc_.end(), ChunkAcc{});
+  std::vector<ChunkAcc>& acc = acc_;
+  const bool rest_frame_active = pass.rest_frame_active;
+  f.setZero(sys.num_dofs());  // (assemble_batched replaces the matrix values)
+  const bool active = !st.active_tension_pa.empty();
+  // The active forces' own vector is needed only for the energy check's work balance.
+  const bool track_active_work = active && pass.track_active_work;
+  if (track_active_work) f_active.setZero(sys.num_dofs());
+  // One pass per element (rotations fused in unless the last step's check computed them):
+  // F, R, the corotated strain's stress, forces, energy and the warped blocks in closed
+  // form (core/spencer_element.hpp: no stored 12 x 12 K^e is read).
+  const bool need_rotations = !st.rotations_current;
+  const auto& regions = mesh_.regions();
+  constexpr int W = ElementBatch::kWidth;
+  static_assert(W <= 4, "rotate_elements takes at most four elements");
+  using Lanes = double __attribute__((vector_size(W * sizeof(double))));
+  sys.assemble_batched(
+      [&](const int* elems, int n, ElementBatch& batch) {
+        ChunkAcc& my = acc[static_cast<size_t>(batch.chunk)];
+        // Lanes past n repeat the last element (computed, never scattered).
+        int lane_elem[W];
+        for (int l = 0; l < W; ++l) lane_elem[l] = elems[std::min(l, n - 1)];
+        Mat3 D[W], F[W];
+        for (int l = 0; l < W; ++l) {
+          const int e = lane_elem[l];
+          D[l] = element_edges(x, e);
+          if (l < n) {
+            F[l].noalias() = D[l] * elements_[static_cast<size_t>(e)].Dm_inv;
+            F[l].diagonal().array() += 1.0;
+          }
+        }
+        if (need_rotations) my.inverted += rotate_elements(pass, st, elems, n, F);
+        Lanes kv[5], cl, Rl[9], Dil[9], Dl[9], fl[3];
+        for (int l = 0; l < W; ++l) {
+          const size_t i = static_cast<size_t>(lane_elem[l]);
+          const SpencerElement& el = elements_[i];
+          const SpencerConstants& law = region_law_[static_cast<size_t>(regions[i])];
+          kv[0][l] = el.volume * law.lambda;
+          kv[1][l] = el.volume * law.mu_t;
+          kv[2][l] = el.volume * law.alpha;
+          kv[3][l] = el.volume * law.gamma;
+          kv[4][l] = el.volume * law.beta;
+          cl[l] = h * beta_e_[i] + h * h;
+          const Mat3& R = st.R[i];
+          for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) {
+              Rl[3 * r + c][l] = R(r, c);
+              Dil[3 * r + c][l] = el.Dm_inv(r, c);
+              Dl[3 * r + c][l] = D[l](r, c);
+            }
+          for (int c = 0; c < 3; ++c) fl[c][l] = el.fiber(c);
+        }
+        // Forces -V R sigma g_a and energies of all lanes at once.
+        Lanes fel[12], energy;
+        spencer_force_lanes(kv, Rl, Dil, Dl, fl, fel, energy);
+        for (int l = 0; l < n; ++l) {
+          Vec12& fe = batch.force[l];
+          for (int c = 0; c < 12; ++c) fe(c) = fel[c][l];
+          my.energy += energy[l];
+        }
+        if (active)
+          for (int l = 0; l < n; ++l) {
+            // g^e_a = V f (f . g_a) (PHYSICS.md section 6): the active force is
+            // -T_a V (R f)(f . g_a), or along the rest fiber f in the paper's nodal mode.
+            const size_t i = static_cast<size_t>(elems[l]);
+            const SpencerElement& el = elements_[i];
+            Vec12& fe = batch.force[l];
+            const Vec3 dir = rest_frame_active ? el.fiber : Vec3(st.R[i] * el.fiber);
+            const Vec3 s123 = el.Dm_inv * el.fiber;  // f . g_a, a = 1..3
+            const double sa[4] = {-(s123(0) + s123(1) + s123(2)), s123(0), s123(1), s123(2)};
+            const double tv = st.active_tension_pa[i] * el.volume;
+            const Tet& t = mesh_.tets()[i];
+            for (int a = 0; a < 4; ++a) {
+              const Vec3 fa = (-tv * sa[a]) * dir;
+              fe.segment<3>(3 * a) += fa;
+              if (track_active_work) f_active.segment<3>(3 * t[static_cast<size_t>(a)]) += fa;
+            }
+          }
+        // The warped stiffness of all lanes at once: c R K^e R^T (core/spencer_element.hpp).
+        Lanes k[5];
+        for (int j = 0; j < 5; ++j) k[j] = cl * kv[j];
+        Lanes out[90];
+        spencer_upper_blocks(k, Rl, Dil, fl, out);
+        std::memcpy(batch.upper, out, sizeof out);
+      },
+      f);
+  if (need_rotations) {
+    int inverted_sum = 0;
+    for (const ChunkAcc& a : acc) inverted_sum += a.inverted;
+    st.inverted_current = inverted_sum;
+  }
+  st.rotations_current = true;
+  double elastic = 0;
+  for (const ChunkAcc& c : acc) elastic += c.energy;
+  return elastic;
+}
+
+double CorotatedLinearModel::elastic_energy(const Eigen::VectorXd& x, bool corotation) const {
+  const int ne = mesh_.num_elements();
+  return fixed_sum(ne, true, [&](int e) {
+    const size_t i = static_cast<size_t>(e);
+    const Mat3 F = element_gradient(x, e);
+    const Mat3 R = corotation ? rotation_svd(F) : Mat3::Identity();
+    return spencer_energy(region_law_[static_cast<size_t>(mesh_.regions()[i])], elements_[i], R, F);
+  });
+}
+
+int CorotatedLinearModel::count_inverted(const Eigen::VectorXd& x) const {
+  int count = 0;
+  for (int e = 0; e < mesh_.num_elements(); ++e)
+    if (element_gradient(x, e).determinant() <= 0) ++count;
+  return count;
+}
+
+void CorotatedLinearModel::seed_rotations(SimulatorState& st, bool corotation) const {
+  // Exact, by SVD: the warm-started polar iteration starts from these.
+  const int ne = mesh_.num_elements();
+  parallel_for(ne, [&](int e) {
+    const size_t i = static_cast<size_t>(e);
+    const Mat3 F = element_gradient(st.x, e);
+    st.R[i] = corotation ? rotation_svd(F) : Mat3::Identity();
+    st.q[i] = Eigen::Quaterniond(st.R[i]);
+  });
+}
+
+// Rotation of each node block: the rotation nearest the sum of the rotations of the
+// elements around the node (warm-started polar extraction). Only the warp preconditioner
+// uses it.
+void CorotatedLinearModel::update_node_rotations(SimulatorState& st, bool corotation) const {
+  const int nb = static_cast<int>(block_node_.size());
+  if (!corotation) {
+    std::fill(st.block_R.begin(), st.block_R.end(), Mat3::Identity());
+    return;
+  }
+  const int nbatch = (nb + 3) / 4;  // four blocks at a time (rotation_polar_batch)
+  parallel_for(nbatch, [&](int b) {
+    const int n4 = std::min(4, nb - 4 * b);
+    Mat3 sum[4];
+    Eigen::Quaterniond* q[4];
+    Mat3* R[4];
+    for (int l = 0; l < n4; ++l) {
+      const size_t k = static_cast<size_t>(4 * b + l);
+      const int n = block_node_[k];
+      sum[l].setZero();
+      for (int j = node_elem_start_[static_cast<size_t>(n)]; j < node_elem_start_[static_cast<size_t>(n) + 1]; ++j)
+        sum[l] += st.R[static_cast<size_t>(node_elems_[static_cast<size_t>(j)])];
+      q[l] = &st.block_q[k];
+      R[l] = &st.block_R[k];
+    }
+    rotation_polar_batch(sum, q, R, n4, 1e-6);
+  });
+}
+
+void CorotatedLinearModel::set_region_material(int region, const Material& material) {
+  region_law_[static_cast<size_t>(region)] = SpencerConstants::of(material);
+}
+
+void CorotatedLinearModel::set_region_stiffness_damping(int region, double beta_s) {
+  for (int e = 0; e < mesh_.num_elements(); ++e)
+    if (mesh_.regions()[static_cast<size_t>(e)] == region) beta_e_[static_cast<size_t>(e)] = beta_s;
+}
+
+void CorotatedLinearModel::set_fiber(int e, const Vec3& unit_fiber) { elements_[static_cast<size_t>(e)].fiber = unit_fiber; }
+
+}  // namespace fiberfem::core

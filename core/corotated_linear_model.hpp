@@ -1,0 +1,55 @@
+#pragma once
+/// @file The corotated linear tetrahedron as an ElementModel: the engine's element family
+/// (PHYSICS.md sections 2 to 6), in the closed form of core/spencer_element.hpp, several
+/// elements per SIMD pass with the rotations fused in.
+
+#include "core/element_cache.hpp"
+#include "core/element_model.hpp"
+#include "core/model.hpp"
+#include "core/spencer_element.hpp"
+
+#include <vector>
+
+namespace fiberfem::core {
+
+class CorotatedLinearModel final : public ElementModel {
+  // One cache line per chunk of the element loop for its sums (chunks of one colour run
+  // on different threads at once).
+  struct alignas(64) ChunkAcc {
+    double energy = 0;
+    int inverted = 0;
+  };
+
+ public:
+  /// From a validated model and its element caches (rest positions and rest-shape
+  /// inverses). `block_nodes`: the node of each free node block, in block order
+  /// (update_node_rotations). Keeps a reference to model.mesh, which must outlive it.
+  CorotatedLinearModel(const Model& model, const ElementCaches& caches, std::vector<int> block_nodes);
+
+  double assemble(const ElementPass& pass, SimulatorState& st, SparseSystem& sys, Eigen::VectorXd& f,
+                  Eigen::VectorXd& f_active) override;
+  double elastic_energy(const Eigen::VectorXd& x, bool corotation) const override;
+  int count_inverted(const Eigen::VectorXd& x) const override;
+  void seed_rotations(SimulatorState& st, bool corotation) const override;
+  void update_node_rotations(SimulatorState& st, bool corotation) const override;
+  void set_region_material(int region, const Material& material) override;
+  void set_region_stiffness_damping(int region, double beta_s) override;
+  void set_fiber(int e, const Vec3& unit_fiber) override;
+
+ private:
+  Mat3 element_edges(const Eigen::VectorXd& x, int e) const;
+  Mat3 element_gradient(const Eigen::VectorXd& x, int e) const;
+  static int rotate_elements(const ElementPass& pass, SimulatorState& st, const int* elems, int n, const Mat3* F);
+
+  const TetMesh& mesh_;
+  std::vector<SpencerElement> elements_;      // what the pass reads per element
+  std::vector<SpencerConstants> region_law_;  // per region
+  std::vector<double> beta_e_;                // per element stiffness damping, s
+  // Node blocks of the free DOFs (for the warp preconditioner): node of each block, and
+  // the elements around each node (CSR).
+  std::vector<int> block_node_;
+  std::vector<int> node_elem_start_, node_elems_;
+  std::vector<ChunkAcc> acc_;  // per chunk of the pass (sized once)
+};
+
+}  // namespace fiberfem::core

@@ -1,0 +1,95 @@
+#include "core/solvers/cholesky_factor.hpp"
+
+#include <dlfcn.h>
+#include <omp.h>
+
+#include <algorithm>
+
+namespace fiberfem::core::detail {
+
+#ifdef FIBERFEM_HAVE_CHOLMOD
+// The supernodal factorisation calls BLAS between the engine's OpenMP loops. A
+// multithreaded OpenBLAS keeps its threads spinning after the call and slows those loops
+// down (measured: the rotation phase 3x slower on two cores), so BLAS runs on one thread.
+void CholeskyFactor::single_threaded_blas() {
+  using SetThreads = void (*)(int);
+  if (auto f = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) f(1);
+}
+#endif
+// CHOLMOD's own OpenMP loops (in the supernodal factorisation) ask for teams of
+// CHOLMOD_OMP_NUM_THREADS threads, which Debian's build fixes at 4 whatever the machine.
+// On two cores that oversubscribes them, and the engine's worker threads then wait in
+// the kernel instead of spinning: the factorisation of the 5,760-tet benchmark beam took
+// 20 ms instead of 5-6. A host teams region caps every parallel region inside it at the
+// engine's thread count (its thread_limit). Not from inside a parallel region, where
+// a teams construct may not nest (and CHOLMOD's regions are serialised anyway).
+template <class F>
+void CholeskyFactor::within_engine_threads(F&& f) {
+  if (omp_in_parallel()) {
+    f();
+    return;
+  }
+  const int limit = std::max(1, std::min(omp_get_max_threads(), omp_get_num_procs()));
+#pragma omp teams num_teams(1) thread_limit(limit)
+  f();
+}
+
+CholeskyFactor::CholeskyFactor() {
+#ifdef FIBERFEM_HAVE_CHOLMOD
+  single_threaded_blas();
+  // Fill-reducing ordering: CHOLMOD tries AMD and METIS at analysis and keeps the one
+  // with the smaller factor. Its own default kept AMD on the 245,760-tet beam (nnz(L)
+  // 127 M, 116 GFlop to factorise) where METIS gives 81 M and 104 GFlop; on the
+  // slender 5,760-tet beam AMD stays best (418 k against 515 k).
+  cholmod_common& c = llt_.cholmod();
+  c.nmethods = 2;
+  c.method[0].ordering = CHOLMOD_AMD;
+  c.method[1].ordering = CHOLMOD_METIS;
+  c.postorder = 1;
+#endif
+}
+
+bool CholeskyFactor::factorize(const SparseMatrix& A) {
+  Acol_ = Eigen::Map<const Eigen::SparseMatrix<double, Eigen::ColMajor, int>>(
+      A.rows(), A.cols(), A.nonZeros(), A.outerIndexPtr(), A.innerIndexPtr(), A.valuePtr());
+  within_engine_threads([&] {
+    if (!analysed_ || Acol_.rows() != rows_) {
+      llt_.analyzePattern(Acol_);
+      analysed_ = true;
+      rows_ = Acol_.rows();
+    }
+    llt_.factorize(Acol_);
+  });
+  ok_ = llt_.info() == Eigen::Success;
+#ifdef FIBERFEM_HAVE_CHOLMOD
+  if (ok_ && single_precision_) single_.build(llt_.factor());
+#endif
+  const FactorInfo i = info();
+  cost_in_applications_ = i.nonzeros > 0 ? i.flops / (4 * i.nonzeros) : 0;
+  return ok_;
+}
+
+FactorInfo CholeskyFactor::info() const {
+  FactorInfo i;
+  i.factored = ok_;
+  if (!ok_) return i;
+#ifdef FIBERFEM_HAVE_CHOLMOD
+  const cholmod_common& c = const_cast<OpenCholmodSupernodalLLT<Eigen::SparseMatrix<double, Eigen::ColMajor, int>>&>(llt_).cholmod();
+  i.nonzeros = c.lnz;
+  i.flops = c.fl;
+  const int ordering = c.selected >= 0 && c.selected < CHOLMOD_MAXMETHODS ? c.method[c.selected].ordering : -1;
+  i.ordering = ordering == CHOLMOD_AMD ? "amd" : ordering == CHOLMOD_METIS ? "metis" : ordering == CHOLMOD_NESDIS ? "nesdis" : "other";
+  i.solve_threads = single_precision_ && single_.ok() && single_.parallel() && omp_get_max_threads() >= 2 ? 2 : 1;
+#else
+  const auto& L = llt_.matrixL().nestedExpression();
+  i.nonzeros = static_cast<double>(L.nonZeros());
+  for (Eigen::Index j = 0; j < L.outerSize(); ++j) {  // sum of squared column counts
+    const double c = static_cast<double>(L.outerIndexPtr()[j + 1] - L.outerIndexPtr()[j]);
+    i.flops += c * c;
+  }
+  i.ordering = "amd";
+#endif
+  return i;
+}
+
+}  // namespace fiberfem::core::detail

@@ -1,0 +1,61 @@
+#pragma once
+/// @file The lagged factors of the PCG solver's warp preconditioner: one factor (or amg
+/// hierarchy) per matrix family, when to refresh it, and its part of LinearSolverState.
+
+#include "core/linear_solver.hpp"
+#include "core/solvers/warp_preconditioner.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace fiberfem::core::detail {
+
+/// The factor slots of a PCG solver with the cholesky or amg preconditioner, and the warp
+/// state its preconditioner reads (WarpCholeskyPreconditioner::set_state(&warp())).
+class LaggedFactors {
+ public:
+  explicit LaggedFactors(const SolverSettings& s) : s_(s) {}
+  /// What the preconditioner applies: the slot in use, the node blocks, the rotations.
+  WarpState& warp() { return warp_; }
+  const WarpState& warp() const { return warp_; }
+  /// Current positions of the node blocks (amg), read at the next refactorisation.
+  void set_block_positions(const Eigen::VectorXd& positions) { positions_ = &positions; }
+  /// Names the family of the next matrices (the step size h): one factor per family.
+  void set_key(double key) { key_ = key; }
+  /// Every factor is refreshed at its next use.
+  void invalidate() {
+    for (auto& sl : slots_) sl->stale = true;
+  }
+  /// The slot of the current family (least recently used one replaced), marked used.
+  FactorSlot& select_slot();
+  /// Factorises A into `slot` (an amg setup with PreconditionerKind::amg), counted in
+  /// `st`; `sync` (when given) is the system whose CSR values must be synced first.
+  void refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats& st, SparseSystem* sync);
+  /// Whether `slot` holds a usable factor or hierarchy.
+  static bool ok(const FactorSlot& slot) { return slot.amg.ok() || slot.factor.ok(); }
+  /// Counts a solve's iterations against the slot's refresh budget (marks it stale).
+  void note_iterations(FactorSlot& slot, int iterations) const;
+  /// The factor of the slot last used (FactorInfo).
+  FactorInfo info() const;
+  /// The slots (and their key and clock) into / from LinearSolverState.
+  void save(LinearSolverState& st) const;
+  /// @throws std::invalid_argument if the saved factors do not fit `pattern`.
+  void check(const LinearSolverState& st, const SparseMatrix& pattern) const;
+  void load(const LinearSolverState& st, const SparseMatrix& pattern);
+
+ private:
+  // Factors are kept per matrix family (the step size): a step retried with substeps, and
+  // the full step after it, each find their own factor instead of refactorising back and
+  // forth. At most kSlots factors (least recently used replaced).
+  static constexpr size_t kSlots = 2;
+  void build_amg(const SparseMatrix& A, const Eigen::VectorXd& positions, FactorSlot& slot);
+
+  SolverSettings s_;
+  WarpState warp_;
+  const Eigen::VectorXd* positions_ = nullptr;  // node-block positions of the next solve (amg; the caller's)
+  std::vector<std::unique_ptr<FactorSlot>> slots_;
+  double key_ = 0;
+  long clock_ = 0;
+};
+
+}  // namespace fiberfem::core::detail

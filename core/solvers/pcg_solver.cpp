@@ -1,0 +1,103 @@
+#include "core/solvers/pcg_solver.hpp"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace fiberfem::core::detail {
+
+SolveStats PcgSolver::solve(const SparseMatrix& A, const Eigen::VectorXd& b_in, Eigen::VectorXd& x) {
+  if (!s_.warm_start || x.size() != b_in.size()) x = Eigen::VectorXd::Zero(b_in.size());
+  // Solve for x / |b| with a unit right-hand side: CG's squared norms would underflow
+  // below DBL_MIN for a body decaying to rest (|b| ~ 1e-154) and stop it early.
+  const double bn = b_in.norm();
+  if (bn == 0.0) {
+    x.setZero();
+    SolveStats st;
+    st.ok = true;
+    return st;
+  }
+  if (!std::isfinite(bn)) return failed({});
+  scaled_b_ = b_in / bn;
+  const Eigen::VectorXd& b = scaled_b_;
+  // The upper block store when it holds this matrix (the simulator's step) and this
+  // solver's passes have a block form (the cholesky preconditioner; the projection with
+  // eight recycled solutions); otherwise the CSR values, synced.
+  use_blocks_ = system_ && system_->blocks_current() && &A == &system_->matrix() &&
+                s_.preconditioner == PreconditionerKind::cholesky && (!s_.warm_start || s_.recycled_solutions == 8);
+  if (system_ && system_->blocks_current() && !use_blocks_) system_->sync_matrix();
+  pcg_.blocks_ = use_blocks_ ? system_ : nullptr;
+  x /= bn;
+  const Eigen::VectorXd* Ax0 = s_.warm_start ? recycler_.project(A, b, x, use_blocks_ ? system_ : nullptr) : nullptr;
+  SolveStats st = solve_scaled(A, b, x, Ax0);
+  if (st.ok && s_.warm_start) recycler_.remember(x);
+  x *= bn;
+  return st;
+}
+
+template <class Preconditioner>
+SolveStats PcgSolver::run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                          const Eigen::VectorXd* Ax0) {
+  pre.compute(A);
+  return pcg_.solve(
+      A, b, x, s_.tolerance, s_.max_iterations, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { pre._solve_impl(r, z); },
+      Ax0);
+}
+
+// With a lagged factor: the slot of this matrix family, refactorised when stale; a solve
+// that fails with an old factor refactorises and starts again from the same guess.
+SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                   const Eigen::VectorXd* Ax0) {
+  if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_pre_, A, b, x, Ax0);
+  SolveStats st;
+  WarpState& warp = lagged_.warp();
+  SparseSystem* sync = use_blocks_ ? system_ : nullptr;
+  FactorSlot& slot = lagged_.select_slot();
+  warp.slot = &slot;
+  if (slot.stale || !LaggedFactors::ok(slot) || slot.rows != A.rows()) lagged_.refactor(A, slot, st, sync);
+  if (!LaggedFactors::ok(slot)) return failed(st);
+  warp.update_warp();
+  first_guess_ = x;
+  const Eigen::VectorXd& x0 = first_guess_;
+  SolveStats cg = run(warp_pre_, A, b, x, Ax0);
+  int first = 0;  // iterations of a first attempt with the old factor
+  if (!cg.ok && st.factorizations == 0) {
+    // The old factor was too far from this matrix: refresh it and solve again.
+    lagged_.refactor(A, slot, st, sync);
+    if (!LaggedFactors::ok(slot)) return failed(st);
+    warp.update_warp();
+    first = cg.iterations;
+    x = x0;
+    cg = run(warp_pre_, A, b, x, Ax0);
+  }
+  lagged_.note_iterations(slot, cg.iterations);  // with the factor now in the slot
+  cg.iterations += first;
+  cg.factorizations = st.factorizations;
+  slot.stale = slot.stale || cg.iterations > s_.refresh_iterations;
+  return cg;
+}
+
+SolveStats PcgSolver::failed(SolveStats st) {
+  st.ok = false;
+  st.relative_residual = std::numeric_limits<double>::infinity();
+  return st;
+}
+
+LinearSolverState PcgSolver::save_state() const {
+  LinearSolverState st;
+  st.solver_name = name();
+  recycler_.save(st);
+  lagged_.save(st);
+  return st;
+}
+
+void PcgSolver::load_state(const LinearSolverState& st, const SparseMatrix& pattern) {
+  if (st.solver_name != name())
+    throw std::invalid_argument("linear solver state: saved by '" + st.solver_name + "', restoring into '" + name() + "'");
+  SolutionRecycler::check(st);
+  lagged_.check(st, pattern);
+  recycler_.load(st);
+  lagged_.load(st, pattern);
+}
+
+}  // namespace fiberfem::core::detail

@@ -1,0 +1,58 @@
+#pragma once
+/// @file The PCG solver (LinearSolverKind::pcg): scaling, the choice between the block
+/// store and the CSR values, solution recycling, and the preconditioner with its lagged
+/// factors around the conjugate-gradient iteration.
+
+#include "core/linear_solver.hpp"
+#include "core/solvers/block_jacobi.hpp"
+#include "core/solvers/lagged_factors.hpp"
+#include "core/solvers/pcg.hpp"
+#include "core/solvers/solution_recycler.hpp"
+#include "core/solvers/warp_preconditioner.hpp"
+
+namespace fiberfem::core::detail {
+
+class PcgSolver final : public LinearSolver {
+ public:
+  explicit PcgSolver(const SolverSettings& s) : s_(s), recycler_(s.recycled_solutions), lagged_(s) {
+    warp_pre_.set_state(&lagged_.warp());
+  }
+  SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
+  std::string name() const override { return std::string("pcg/") + to_string(s_.preconditioner); }
+  FactorInfo factor_info() const override { return lagged_.info(); }
+  void set_blocks(std::vector<int> starts) override {
+    lagged_.warp().starts = starts;
+    jacobi_pre_.set_blocks(std::move(starts));
+  }
+  bool uses_block_rotations() const override { return s_.preconditioner != PreconditionerKind::block_jacobi; }
+  void set_block_rotations(const std::vector<Mat3>& rotations) override { lagged_.warp().current = rotations; }
+  bool uses_block_positions() const override { return s_.preconditioner == PreconditionerKind::amg; }
+  void set_block_positions(const Eigen::VectorXd& positions) override { lagged_.set_block_positions(positions); }
+  void invalidate() override { lagged_.invalidate(); }
+  void set_matrix_key(double key) override { lagged_.set_key(key); }
+  void set_system(SparseSystem* system) override { system_ = system; }
+  bool reads_blocks() const override { return true; }
+  void forget_solutions() override { recycler_.forget(); }
+  LinearSolverState save_state() const override;
+  void load_state(const LinearSolverState& st, const SparseMatrix& pattern) override;
+
+ private:
+  SolveStats solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                          const Eigen::VectorXd* Ax0);
+  template <class Preconditioner>
+  SolveStats run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                 const Eigen::VectorXd* Ax0);
+  static SolveStats failed(SolveStats st);
+
+  SolverSettings s_;
+  Pcg pcg_;
+  SolutionRecycler recycler_;
+  LaggedFactors lagged_;
+  BlockJacobiPreconditioner jacobi_pre_;
+  WarpCholeskyPreconditioner warp_pre_;
+  SparseSystem* system_ = nullptr;
+  bool use_blocks_ = false;
+  Eigen::VectorXd scaled_b_, first_guess_;  // solve()'s b / |b| and solve_scaled()'s x0 (kept: no allocation)
+};
+
+}  // namespace fiberfem::core::detail
