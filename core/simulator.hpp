@@ -105,6 +105,10 @@ class Simulator {
   /// Validates the model and settings and precomputes every element cache.
   /// @throws std::invalid_argument naming what is wrong.
   Simulator(Model model, SimulatorSettings settings = {});
+  /// Not movable: the element model and the varying loads point into the owned model.
+  /// Hold a Simulator where it is made (or through a unique_ptr).
+  Simulator(Simulator&&) = delete;
+  Simulator& operator=(Simulator&&) = delete;
 
   /// Advances by dt. Never throws for numerical trouble: see StepReport::status.
   StepReport step();
