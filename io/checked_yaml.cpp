@@ -76,28 +76,26 @@ void Checks::out_of_range(const YAML::Node& n, const std::string& path, double v
   fail(n, path, s.str());
 }
 
-double Checks::number(const YAML::Node& n, const std::string& path, double lo, double hi, bool open_lo) const {
+double Checks::finite(const YAML::Node& n, const std::string& path, const char* not_a_number) const {
   double v = 0;
   try {
     if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "");
     v = n.as<double>();
   } catch (const YAML::Exception&) {
-    fail(n, path, wording(dialect_).not_a_number);
+    fail(n, path, not_a_number);
   }
   if (!std::isfinite(v)) fail(n, path, wording(dialect_).not_finite);
+  return v;
+}
+
+double Checks::number(const YAML::Node& n, const std::string& path, double lo, double hi, bool open_lo) const {
+  const double v = finite(n, path, wording(dialect_).not_a_number);
   if (v < lo || (open_lo && v == lo) || v > hi) out_of_range(n, path, v, lo, hi, open_lo, false);
   return v;
 }
 
 int Checks::integer(const YAML::Node& n, const std::string& path, long lo, long hi) const {
-  double v = 0;
-  try {
-    if (!n.IsScalar()) throw YAML::Exception(n.Mark(), "");
-    v = n.as<double>();
-  } catch (const YAML::Exception&) {
-    fail(n, path, wording(dialect_).not_an_integer);
-  }
-  if (!std::isfinite(v)) fail(n, path, wording(dialect_).not_finite);
+  const double v = finite(n, path, wording(dialect_).not_an_integer);
   const double l = static_cast<double>(lo), h = static_cast<double>(hi);
   if (v < l || v > h) out_of_range(n, path, v, l, h, false, true);
   if (v != std::floor(v)) fail(n, path, wording(dialect_).not_whole);

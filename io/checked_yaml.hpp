@@ -69,6 +69,8 @@ class Checks {
   core::Vec3 vec3(const YAML::Node& n, const std::string& path, double bound = HUGE_VAL) const;
 
  private:
+  // A finite number, or the failure `not_a_number` (the wording differs for integers).
+  double finite(const YAML::Node& n, const std::string& path, const char* not_a_number) const;
   [[noreturn]] void out_of_range(const YAML::Node& n, const std::string& path, double v, double lo, double hi,
                                  bool open_lo, bool whole) const;
   std::string origin_;

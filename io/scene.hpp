@@ -49,6 +49,7 @@ struct ArchiveSettings {
 
 /// Everything a scene file describes.
 struct Scene {
+  /// A scene of `m` with every other field at its default (parse_scene fills them).
   explicit Scene(core::Model m) : model(std::move(m)) {}
   std::string name;
   core::Model model;

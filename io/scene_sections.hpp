@@ -26,10 +26,12 @@ const std::vector<std::string>& material_keys();
 /// are accepted and left to the caller (a command's `region`).
 core::Material read_material(const Checks& checks, const YAML::Node& node, const std::string& path, MaterialSpec& spec,
                              const std::vector<std::string>& also_allowed = {});
+/// The material mapping that its reader reads back to the same value.
 YAML::Node write_material(const MaterialSpec& spec);
 
 /// regions[i].damping.
 core::RayleighDamping read_damping(const Checks& checks, const YAML::Node& node, const std::string& path);
+/// The damping mapping that its reader reads back to the same value.
 YAML::Node write_damping(const core::RayleighDamping& damping);
 
 /// A node selector (plane, box or node_set); returns the nodes it matches (sorted), at
@@ -37,6 +39,7 @@ YAML::Node write_damping(const core::RayleighDamping& damping);
 std::vector<int> read_node_selector(const Checks& checks, const YAML::Node& node, const std::string& path,
                                     const core::TetMesh& mesh, NodeSelector* spec = nullptr,
                                     const std::vector<std::string>& also_allowed = {});
+/// The selector mapping that its reader reads back to the same value.
 YAML::Node write_node_selector(const NodeSelector& selector);
 
 /// fibers: one whole field (it replaces `spec`), per element for `mesh`. Relative file
@@ -44,6 +47,7 @@ YAML::Node write_node_selector(const NodeSelector& selector);
 std::vector<core::Vec3> read_fibers(const Checks& checks, const YAML::Node& node, const core::TetMesh& mesh,
                                     const std::string& base_dir, FiberSpec& spec,
                                     std::vector<std::string>* files_read = nullptr);
+/// The fibers mapping that its reader reads back to the same value.
 YAML::Node write_fibers(const FiberSpec& spec);
 
 /// contraction onto `spec`, built and validated for `mesh` (regions by name). A
@@ -51,6 +55,7 @@ YAML::Node write_fibers(const FiberSpec& spec);
 /// drops the per-region tensions; twitch keys merge.
 core::Contraction read_contraction(const Checks& checks, const YAML::Node& node, const core::TetMesh& mesh,
                                    const std::vector<std::string>& region_names, ContractionSpec& spec);
+/// The contraction mapping (every twitch key written) that its reader reads back to the same value.
 YAML::Node write_contraction(const ContractionSpec& spec);
 
 /// solver.method, solver.preconditioner, solver.rotation by their scene names.
@@ -59,6 +64,7 @@ core::PreconditionerKind read_preconditioner(const Checks& checks, const YAML::N
 core::RotationMethod read_rotation(const Checks& checks, const YAML::Node& node, const std::string& path);
 /// solver onto `spec` (checked keys; settings are built with solver_settings).
 void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec);
+/// The solver mapping (the keys given; empty for none) that its reader reads back to the same value.
 YAML::Node write_solver(const SolverSpec& spec);
 /// The engine settings for `spec` over `base` (defaults, or a fidelity preset's).
 core::SimulatorSettings solver_settings(const SolverSpec& spec, core::SimulatorSettings base);
