@@ -120,9 +120,13 @@ std::string Checks::choice(const YAML::Node& n, const std::string& path, const s
 }
 
 bool Checks::boolean(const YAML::Node& n, const std::string& path) const {
+  // A scene says true or false; arguments take what YAML reads as a boolean (yes, on, ...).
   if (dialect_ == Dialect::scene) return choice(n, path, {"true", "false"}) == "true";
-  if (!n.IsScalar() || (n.Scalar() != "true" && n.Scalar() != "false")) fail(n, path, wording(dialect_).not_a_boolean);
-  return n.Scalar() == "true";
+  try {
+    if (n.IsScalar()) return n.as<bool>();
+  } catch (const YAML::Exception&) {  // not a boolean: refused below
+  }
+  fail(n, path, wording(dialect_).not_a_boolean);
 }
 
 core::Vec3 Checks::vec3(const YAML::Node& n, const std::string& path, double bound) const {

@@ -48,8 +48,9 @@ class RunControl {
   explicit RunControl(io::Scene scene, const io::EmbeddedFiles* files = nullptr);
 
   /// The running parameters as JSON: {"scene_yaml": the scene with its parameter sections
-  /// written from the running ones (every accepted parameter command in), "forces": [...]}. With the simulator's checkpoint it
-  /// resumes the run exactly (restore_parameter_state, then Simulator::restore).
+  /// written from the running ones (every accepted parameter command in), "forces": [...]}.
+  /// With the simulator's checkpoint it resumes the run exactly (restore_parameter_state,
+  /// then Simulator::restore).
   std::string parameter_state_json() const;
   /// Rebuilds the simulator for a parameter state (the scene text re-parsed, forces
   /// re-applied); the state is then the rest state until Simulator::restore.
@@ -120,8 +121,8 @@ class RunControl {
   RecordingHandler recording_;
   void refresh_loads();
 
-  io::Scene scene_;            // as loaded (reset with parameters restores it)
-  std::string scene_doc_;      // the scene text the parameter sections are written into (loaded or restored)
+  io::Scene scene_;             // as loaded (reset with parameters restores it)
+  std::string scene_doc_;       // the scene text the parameter sections are written into (loaded or restored)
   io::SceneParameters params_;  // the running parameter sections (the scene's, commands read onto them)
   const io::EmbeddedFiles* files_ = nullptr;
   struct Saved {
