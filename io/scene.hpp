@@ -5,6 +5,8 @@
 #include "core/cavity.hpp"
 #include "core/model.hpp"
 #include "core/simulator.hpp"
+#include "io/checked_yaml.hpp"
+#include "io/scene_parameters.hpp"
 
 #include <map>
 #include <optional>
@@ -13,12 +15,6 @@
 #include <vector>
 
 namespace fiberfem::io {
-
-/// A bad scene: the message starts with "<origin>:<line>: <key path>: ".
-class SceneError : public std::invalid_argument {
- public:
-  using std::invalid_argument::invalid_argument;
-};
 
 /// A point whose displacement is reported, interpolated linearly in the element that
 /// contains it (located when the scene is parsed; a point outside the mesh is an error).
@@ -30,8 +26,6 @@ struct Probe {
   /// Displacement of the probe for positions `x` (3 x N), metres.
   core::Vec3 displacement(const core::TetMesh& mesh, const core::Positions& x) const;
 };
-
-enum class Mode { dynamic, static_ };
 
 /// A cavity whose volume is measured (scene key measure.cavities).
 struct CavityMeasure {
@@ -55,6 +49,8 @@ struct ArchiveSettings {
 
 /// Everything a scene file describes.
 struct Scene {
+  /// A scene of `m` with every other field at its default (parse_scene fills them).
+  explicit Scene(core::Model m) : model(std::move(m)) {}
   std::string name;
   core::Model model;
   core::SimulatorSettings settings;
@@ -77,6 +73,9 @@ struct Scene {
   ArchiveSettings archive;
   /// Region names, by region id.
   std::vector<std::string> region_names;
+  /// What the scene says about the sections a parameter command changes (the model and
+  /// settings above are built from these).
+  SceneParameters parameters;
   /// Settings the scene may run with but outside the measured limits (docs/speed-accuracy.md),
   /// each "<origin>:<line>: <key path>: why"; `fiberfem run` and `serve` print them.
   std::vector<std::string> warnings;
@@ -98,21 +97,9 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin = "<sc
                   const std::string& base_dir = "", const std::vector<std::string>& overrides = {},
                   const EmbeddedFiles* embedded = nullptr);
 
-// Sections of a scene parsed alone, with the keys and checks of a scene file
-// (docs/scenes.md): the service applies parameter commands through these. YAML or JSON
-// text; `origin` names the source in errors. @throws SceneError naming the key.
-
-/// A region's `material` mapping.
-core::Material parse_material(const std::string& yaml_text, const std::string& origin);
-/// The `contraction` mapping for this mesh (region names resolve `regions`; `pacing`
-/// delays are computed on the rest mesh), validated.
-core::Contraction parse_contraction(const std::string& yaml_text, const core::TetMesh& mesh,
-                                    const std::vector<std::string>& region_names, const std::string& origin);
-/// The `archive` mapping (path, flush_frames, ...), for start_recording.
+/// The `archive` mapping (path, flush_frames, ...) alone, YAML or JSON text, for
+/// start_recording. @throws SceneError naming the key.
 ArchiveSettings parse_archive_settings(const std::string& yaml_text, const std::string& origin);
-/// The `fibers` mapping (uniform, rule, strokes, file) for this mesh, per element.
-std::vector<core::Vec3> parse_fibers(const std::string& yaml_text, const core::TetMesh& mesh,
-                                     const std::string& base_dir, const std::string& origin);
 
 /// Reads and parses a scene file (with optional overrides, as parse_scene).
 /// @throws SceneError (also for an unreadable file).

@@ -1,116 +1,62 @@
 #pragma once
 /// @file The arguments of one command (a JSON or YAML object) with checked access, for the
-/// command handlers of RunControl (service/run_control*.cpp). Internal to the run library.
+/// command handlers of RunControl (service/run_control*.cpp): io's checked-YAML toolkit
+/// (io/checked_yaml.hpp) in its arguments dialect ("'dt' = 100 is out of range [1e-06, 10]").
+/// Internal to the run library.
 
-#include "core/types.hpp"
+#include "io/checked_yaml.hpp"
 
-#include <yaml-cpp/yaml.h>
-
-#include <algorithm>
-#include <cmath>
-#include <sstream>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace fiberfem::service::detail {
 
 using core::Vec3;
+using io::join;
 
-inline std::string join(const std::vector<std::string>& v) {
-  std::string s;
-  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
-  return s;
-}
+/// A rejected command: the message is the reason sent back in the ack.
+using Reject = io::ArgumentError;
 
-inline std::string emit(const YAML::Node& n) {
-  YAML::Emitter e;
-  e << n;
-  return e.c_str();
-}
-
-// A rejected command: the message is the reason sent back in the ack.
-struct Reject : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-// The arguments of one command: a mapping whose keys are checked.
+/// The arguments of one command: an object whose keys are checked against `allowed`.
 class Args {
  public:
-  Args(const std::string& text, std::vector<std::string> allowed) : allowed_(std::move(allowed)) {
-    try {
-      node_ = YAML::Load(text.empty() ? "{}" : text);
-    } catch (const YAML::Exception& e) {
-      throw Reject("arguments are not valid JSON: " + e.msg);
-    }
-    if (node_.IsNull()) node_ = YAML::Node(YAML::NodeType::Map);
-    if (!node_.IsMap()) throw Reject("arguments must be a JSON object");
-    for (const auto& kv : node_) {
-      if (!kv.first.IsScalar()) throw Reject("argument names must be words, not lists or objects");
-      const std::string key = kv.first.as<std::string>();
-      if (std::find(allowed_.begin(), allowed_.end(), key) == allowed_.end())
-        throw Reject("unknown argument '" + key + "'" +
-                     (allowed_.empty() ? " (this command takes none)" : " (allowed: " + join(allowed_) + ")"));
-    }
-  }
-  bool has(const std::string& k) const { return node_[k].IsDefined() && !node_[k].IsNull(); }
-  YAML::Node operator[](const std::string& k) const { return node_[k]; }
-  const YAML::Node& node() const { return node_; }
+  /// @throws Reject when `text` is not JSON (or YAML), not an object, or has a key not allowed.
+  Args(const std::string& text, std::vector<std::string> allowed)
+      : checks_("arguments", io::Dialect::arguments), map_(checks_, load(text), "", std::move(allowed)) {}
+  Args(const Args&) = delete;
+  Args& operator=(const Args&) = delete;
 
-  double number(const std::string& k, double lo, double hi) const { return as_number(node_[k], k, lo, hi); }
-  int integer(const std::string& k, long lo, long hi) const {
-    const double v = number(k, static_cast<double>(lo), static_cast<double>(hi));
-    if (v != std::floor(v)) throw Reject("'" + k + "' must be a whole number");
-    return static_cast<int>(v);
-  }
-  std::string text(const std::string& k) const {
-    if (!node_[k].IsScalar()) throw Reject("'" + k + "' must be a string");
-    return node_[k].as<std::string>();
-  }
-  bool boolean(const std::string& k) const {
-    try {
-      return node_[k].as<bool>();
-    } catch (const YAML::Exception&) {
-      throw Reject("'" + k + "' must be true or false");
-    }
-  }
-  Vec3 vec3(const std::string& k) const { return as_vec3(node_[k], k); }
+  bool has(const std::string& k) const { return map_.has(k); }
+  YAML::Node operator[](const std::string& k) const { return map_[k]; }
+  const YAML::Node& node() const { return map_.node(); }
+  /// The checks in the arguments dialect, for values nested in an argument.
+  const io::Checks& checks() const { return checks_; }
 
-  static double as_number(const YAML::Node& n, const std::string& k, double lo, double hi) {
-    double v = 0;
-    try {
-      if (!n.IsScalar()) throw Reject("");
-      v = n.as<double>();
-    } catch (const std::exception&) {
-      throw Reject("'" + k + "' must be a number");
-    }
-    if (!std::isfinite(v)) throw Reject("'" + k + "' is not finite");
-    if (v < lo || v > hi) {
-      std::ostringstream os;
-      os << "'" << k << "' = " << v << " is out of range [" << lo << ", " << hi << "]";
-      throw Reject(os.str());
-    }
-    return v;
-  }
-  /// A node index: a whole number in [0, num_nodes).
-  static int as_node(const YAML::Node& n, const std::string& k, int num_nodes) {
-    const double v = as_number(n, k, 0, num_nodes - 1);
-    if (v != std::floor(v)) throw Reject("'" + k + "' must be a whole number (a node index)");
+  double number(const std::string& k, double lo, double hi) const { return map_.number(k, lo, hi); }
+  int integer(const std::string& k, long lo, long hi) const { return map_.integer(k, lo, hi); }
+  std::string text(const std::string& k) const { return map_.text(k); }
+  bool boolean(const std::string& k) const { return map_.boolean(k); }
+  /// Three numbers, each within +-1e12.
+  Vec3 vec3(const std::string& k) const { return map_.vec3(k, 1e12); }
+  /// A node index at key path `k`: a whole number in [0, num_nodes).
+  int node_index(const YAML::Node& n, const std::string& k, int num_nodes) const {
+    const double v = checks_.number(n, k, 0, num_nodes - 1);
+    if (v != static_cast<double>(static_cast<long>(v))) throw Reject("'" + k + "' must be a whole number (a node index)");
     return static_cast<int>(v);
-  }
-  static std::string as_text(const YAML::Node& n, const std::string& k) {
-    if (!n.IsScalar()) throw Reject("'" + k + "' must be a string");
-    return n.as<std::string>();
-  }
-  static Vec3 as_vec3(const YAML::Node& n, const std::string& k) {
-    if (!n.IsSequence() || n.size() != 3) throw Reject("'" + k + "' must be a list of three numbers");
-    return {as_number(n[0], k + "[0]", -1e12, 1e12), as_number(n[1], k + "[1]", -1e12, 1e12),
-            as_number(n[2], k + "[2]", -1e12, 1e12)};
   }
 
  private:
-  std::vector<std::string> allowed_;
-  YAML::Node node_;
+  static YAML::Node load(const std::string& text) {
+    YAML::Node n;
+    try {
+      n = YAML::Load(text.empty() ? "{}" : text);
+    } catch (const YAML::Exception& e) {
+      throw Reject("arguments are not valid JSON: " + e.msg);
+    }
+    return n.IsNull() ? YAML::Node(YAML::NodeType::Map) : n;
+  }
+  io::Checks checks_;
+  io::CheckedMap map_;
 };
 
 }  // namespace fiberfem::service::detail

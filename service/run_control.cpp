@@ -4,6 +4,7 @@
 
 #include "service/run_control.hpp"
 
+#include "io/scene_sections.hpp"
 #include "service/command_args.hpp"
 
 #include <nlohmann/json.hpp>
@@ -20,11 +21,10 @@ using detail::Args;
 using detail::join;
 using detail::Reject;
 
-const std::vector<std::vector<std::string>>& material_forms();  // run_control_parameters.cpp
-
 RunControl::RunControl(io::Scene scene, const io::EmbeddedFiles* files)
     : scene_(std::move(scene)),
       scene_doc_(scene_.yaml_text),
+      params_(scene_.parameters),
       sim_(std::make_unique<core::Simulator>(scene_.model, scene_.settings)),
       base_loads_(scene_.model.loads) {
   files_ = files;
@@ -38,11 +38,12 @@ std::string RunControl::parameter_state_json() const {
     forces.push_back({{"name", name}, {"nodes", f.nodes}, {"force_n", fn},
                       {"until_s", std::isfinite(f.until_s) ? nlohmann::json(f.until_s) : nlohmann::json()}});
   }
-  return nlohmann::json{{"scene_yaml", scene_doc_}, {"forces", forces}}.dump();
+  return nlohmann::json{{"scene_yaml", io::write_scene_parameters(scene_doc_, params_)}, {"forces", forces}}.dump();
 }
 
 io::Scene RunControl::running_scene() const {
-  io::Scene s = io::parse_scene(scene_doc_, scene_.name + " (running)", scene_.base_dir, {}, files_);
+  io::Scene s = io::parse_scene(io::write_scene_parameters(scene_doc_, params_), scene_.name + " (running)",
+                                scene_.base_dir, {}, files_);
   s.archive = scene_.archive;
   return s;
 }
@@ -72,6 +73,7 @@ void RunControl::restore_parameter_state(const std::string& text) {
   base_loads_ = s.model.loads;
   forces_ = std::move(forces);
   scene_doc_ = doc;
+  params_ = std::move(s.parameters);
   refresh_loads();
   ++topology_version_;
 }
@@ -82,7 +84,8 @@ void RunControl::restore_parameter_state(const std::string& text) {
 const std::vector<RunControl::Entry>& RunControl::table() {
   static const std::vector<Entry> t = [] {
     std::vector<std::string> material = {"region", "density"};
-    for (const auto& form : material_forms()) material.insert(material.end(), form.begin(), form.end());
+    for (const std::string& k : io::material_keys())
+      if (k != "density") material.push_back(k);
     return std::vector<Entry>{
         {"pause", {}, &RunControl::on_pause, true},
         {"resume", {}, &RunControl::on_resume, true},

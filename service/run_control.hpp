@@ -5,9 +5,11 @@
 /// A command is a kind and a JSON (or YAML) object of arguments. Each is checked whole
 /// before anything changes: a rejected command changes nothing and its reason names the
 /// argument at fault. The commands are a table (RunControl::table: kind, allowed arguments,
-/// handler), their handlers one file per family. Parameter commands that have a scene-file form (material,
-/// contraction, fibers) are merged into the running scene's document and parsed by the
-/// scene parser, so they take the same keys, units and checks as a scene file.
+/// handler), their handlers one file per family. A parameter command is read onto the
+/// running typed value of its scene section (io/scene_sections.hpp; material, contraction
+/// and fibers by the scene's own readers, so with the same keys, units and checks as a
+/// scene file), applied to the engine, and kept as the running parameter state; the scene
+/// text is written from that state only when it is asked for.
 
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
@@ -45,9 +47,10 @@ class RunControl {
   /// Simulator does.
   explicit RunControl(io::Scene scene, const io::EmbeddedFiles* files = nullptr);
 
-  /// The running parameters as JSON: {"scene_yaml": the scene with every accepted
-  /// parameter command merged in, "forces": [...]}. With the simulator's checkpoint it
-  /// resumes the run exactly (restore_parameter_state, then Simulator::restore).
+  /// The running parameters as JSON: {"scene_yaml": the scene with its parameter sections
+  /// written from the running ones (every accepted parameter command in), "forces": [...]}.
+  /// With the simulator's checkpoint it resumes the run exactly (restore_parameter_state,
+  /// then Simulator::restore).
   std::string parameter_state_json() const;
   /// Rebuilds the simulator for a parameter state (the scene text re-parsed, forces
   /// re-applied); the state is then the rest state until Simulator::restore.
@@ -118,8 +121,9 @@ class RunControl {
   RecordingHandler recording_;
   void refresh_loads();
 
-  io::Scene scene_;        // as loaded (reset with parameters restores it)
-  std::string scene_doc_;  // the running scene's YAML (commands merged in)
+  io::Scene scene_;             // as loaded (reset with parameters restores it)
+  std::string scene_doc_;       // the scene text the parameter sections are written into (loaded or restored)
+  io::SceneParameters params_;  // the running parameter sections (the scene's, commands read onto them)
   const io::EmbeddedFiles* files_ = nullptr;
   struct Saved {
     core::SimulatorCheckpoint state;

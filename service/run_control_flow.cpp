@@ -42,6 +42,7 @@ CommandResult RunControl::on_reset(const Args& a) {
     auto fresh = std::make_unique<core::Simulator>(scene_.model, scene_.settings);
     sim_ = std::move(fresh);
     scene_doc_ = scene_.yaml_text;
+    params_ = scene_.parameters;
     base_loads_ = scene_.model.loads;
     forces_.clear();
     ++topology_version_;

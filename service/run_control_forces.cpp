@@ -22,23 +22,23 @@ CommandResult RunControl::on_apply_force(const Args& a) {
   const YAML::Node t = a["target"];
   if (!t.IsMap() || t.size() != 1)
     throw Reject("'target' must be an object with exactly one of node, nodes, node_set, region, point");
-  const std::string how = Args::as_text(t.begin()->first, "target's key");
+  const std::string how = a.checks().text(t.begin()->first, "target's key");
   const YAML::Node v = t.begin()->second;
   std::vector<int> nodes;
   const int nn = mesh.num_nodes();
   if (how == "node") {
-    nodes = {Args::as_node(v, "target.node", nn)};
+    nodes = {a.node_index(v, "target.node", nn)};
   } else if (how == "nodes") {
     if (!v.IsSequence() || v.size() == 0) throw Reject("'target.nodes' must be a non-empty list of node indices");
     std::vector<char> seen(static_cast<size_t>(nn), 0);
     for (size_t i = 0; i < v.size(); ++i) {
       const std::string key = "target.nodes[" + std::to_string(i) + "]";
-      nodes.push_back(Args::as_node(v[i], key, nn));
+      nodes.push_back(a.node_index(v[i], key, nn));
       if (seen[static_cast<size_t>(nodes.back())]++)
         throw Reject("'" + key + "' = " + std::to_string(nodes.back()) + " is listed twice (the force is shared among distinct nodes)");
     }
   } else if (how == "node_set") {
-    const std::string s = Args::as_text(v, "target.node_set");
+    const std::string s = a.checks().text(v, "target.node_set");
     const auto it = mesh.node_sets().find(s);
     if (it == mesh.node_sets().end()) {
       std::vector<std::string> sets;
@@ -47,7 +47,7 @@ CommandResult RunControl::on_apply_force(const Args& a) {
     }
     nodes = it->second;
   } else if (how == "region") {
-    const std::string s = Args::as_text(v, "target.region");
+    const std::string s = a.checks().text(v, "target.region");
     const auto it = std::find(names.begin(), names.end(), s);
     if (it == names.end()) throw Reject("no region '" + s + "' (regions: " + join(names) + ")");
     const int r = static_cast<int>(it - names.begin());
@@ -60,7 +60,7 @@ CommandResult RunControl::on_apply_force(const Args& a) {
   } else if (how == "point") {
     // The node nearest the point in the current (deformed) configuration: what a user
     // who clicks on the drawn mesh means.
-    const Vec3 p = Args::as_vec3(v, "target.point");
+    const Vec3 p = a.checks().vec3(v, "target.point", 1e12);
     const auto x = sim.positions();
     int best = 0;
     double best_d = HUGE_VAL;

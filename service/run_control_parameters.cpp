@@ -1,12 +1,14 @@
-// Parameter commands (docs/commands.md): merged into the running scene's document, parsed
-// as a scene file's section is (same keys, units and checks), applied to the engine, and
-// only then written back into the document.
+// Parameter commands (docs/commands.md). Each reads its arguments onto the running typed
+// value of its section (io/scene_sections.hpp: the scene's own readers, so the same keys,
+// units and checks as a scene file, or the command's argument checks), applies the value
+// built from it to the engine, and only then keeps it as the running parameter state.
+// The scene text recorded from that state is written when it is asked for
+// (RunControl::parameter_state_json).
 
 #include "service/run_control.hpp"
 
+#include "io/scene_sections.hpp"
 #include "service/command_args.hpp"
-
-#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 
@@ -15,7 +17,6 @@ namespace fiberfem::service {
 using detail::Args;
 using detail::join;
 using detail::Reject;
-using detail::emit;
 using core::Vec3;
 
 namespace {
@@ -35,151 +36,95 @@ std::vector<int> regions_of(const Args& a, const std::vector<std::string>& names
 
 }  // namespace
 
-const std::vector<std::vector<std::string>>& material_forms() {
-  static const std::vector<std::vector<std::string>> forms = {
-      {"E_L", "E_T", "nu_LT", "nu_T", "G_L"}, {"lame", "fiber_factor", "shear_factor"}, {"C"}, {"E", "nu"}};
-  return forms;
-}
-
 CommandResult RunControl::on_set_material(const Args& a) {
-  core::Simulator& sim = *sim_;
   const auto& names = scene_.region_names;
-  YAML::Node doc = YAML::Load(scene_doc_);
   const std::vector<int> regions = regions_of(a, names);
-  std::vector<std::pair<int, core::Material>> changes;
-  std::vector<YAML::Node> merged_nodes;
+  std::vector<io::MaterialSpec> specs;
+  std::vector<core::Material> materials;
   for (int r : regions) {
-    YAML::Node m = YAML::Clone(doc["regions"][static_cast<size_t>(r)]["material"]);
-    for (const auto& form : material_forms()) {
-      const bool given = std::any_of(form.begin(), form.end(), [&](const std::string& k) { return a.has(k); });
-      if (!given) continue;
-      for (const auto& other : material_forms())  // switching form drops the old one's keys
-        if (&other != &form)
-          for (const auto& k : other) m.remove(k);
-    }
-    for (const auto& kv : a.node())
-      if (kv.first.as<std::string>() != "region") m[kv.first.as<std::string>()] = kv.second;
-    changes.emplace_back(r, io::parse_material(emit(m), "set_material(" + names[static_cast<size_t>(r)] + ")"));
-    merged_nodes.push_back(m);
+    specs.push_back(params_.regions[static_cast<size_t>(r)].material);
+    const io::Checks checks("set_material(" + names[static_cast<size_t>(r)] + ")");
+    materials.push_back(io::read_material(checks, a.node(), "material", specs.back(), {"region"}));
   }
-  for (const auto& [r, mat] : changes) sim.set_region_material(r, mat);
-  for (size_t i = 0; i < regions.size(); ++i) doc["regions"][static_cast<size_t>(regions[i])]["material"] = merged_nodes[i];
-  scene_doc_ = emit(doc);
+  for (size_t i = 0; i < regions.size(); ++i) {
+    sim_->set_region_material(regions[i], materials[i]);
+    params_.regions[static_cast<size_t>(regions[i])].material = specs[i];
+  }
   return {true, "material of " + std::to_string(regions.size()) + " region(s) set"};
 }
 
 CommandResult RunControl::on_set_damping(const Args& a) {
-  core::Simulator& sim = *sim_;
-  const auto& names = scene_.region_names;
-  YAML::Node doc = YAML::Load(scene_doc_);
   if (!a.has("mass") && !a.has("stiffness")) throw Reject("give mass (1/s) and/or stiffness (s)");
-  const std::vector<int> regions = regions_of(a, names);
-  std::vector<core::RayleighDamping> d(regions.size());
-  for (size_t i = 0; i < regions.size(); ++i) {
-    const auto& cur = sim.model().region_damping;
-    if (!cur.empty()) d[i] = cur[static_cast<size_t>(regions[i])];
-    if (a.has("mass")) d[i].mass_1_s = a.number("mass", 0, 1e6);
-    if (a.has("stiffness")) d[i].stiffness_s = a.number("stiffness", 0, 10);
-    d[i].validate();
+  const std::vector<int> regions = regions_of(a, scene_.region_names);
+  std::vector<core::RayleighDamping> d;
+  for (int r : regions) {
+    d.push_back(params_.regions[static_cast<size_t>(r)].damping.value_or(core::RayleighDamping{}));
+    if (a.has("mass")) d.back().mass_1_s = a.number("mass", 0, 1e6);
+    if (a.has("stiffness")) d.back().stiffness_s = a.number("stiffness", 0, 10);
+    d.back().validate();
   }
   for (size_t i = 0; i < regions.size(); ++i) {
-    sim.set_region_damping(regions[i], d[i]);
-    YAML::Node dn = doc["regions"][static_cast<size_t>(regions[i])]["damping"];
-    dn["mass"] = d[i].mass_1_s;
-    dn["stiffness"] = d[i].stiffness_s;
+    sim_->set_region_damping(regions[i], d[i]);
+    params_.regions[static_cast<size_t>(regions[i])].damping = d[i];
   }
-  scene_doc_ = emit(doc);
   return {true, "damping of " + std::to_string(regions.size()) + " region(s) set"};
 }
 
 CommandResult RunControl::on_set_contraction(const Args& a) {
-  core::Simulator& sim = *sim_;
-  const core::TetMesh& mesh = sim_->model().mesh;
-  const auto& names = scene_.region_names;
-  YAML::Node doc = YAML::Load(scene_doc_);
-  YAML::Node c = doc["contraction"].IsDefined() ? YAML::Clone(doc["contraction"]) : YAML::Node(YAML::NodeType::Map);
-  if (a.has("heart_rate")) c.remove("period");
-  if (a.has("period")) c.remove("heart_rate");
-  if (a.has("peak_tension") && !a.has("regions")) c.remove("regions");
-  for (const auto& kv : a.node()) {
-    const std::string k = kv.first.as<std::string>();
-    if (k == "twitch" && c["twitch"].IsMap() && kv.second.IsMap()) {
-      for (const auto& t : kv.second) c["twitch"][t.first.as<std::string>()] = t.second;
-    } else {
-      c[k] = kv.second;
-    }
-  }
-  sim.set_contraction(io::parse_contraction(emit(c), mesh, names, "set_contraction"));
-  doc["contraction"] = c;
-  scene_doc_ = emit(doc);
+  io::ContractionSpec spec = params_.contraction.value_or(io::ContractionSpec{});
+  core::Contraction c =
+      io::read_contraction(io::Checks("set_contraction"), a.node(), sim_->model().mesh, scene_.region_names, spec);
+  sim_->set_contraction(std::move(c));
+  params_.contraction = spec;
   return {true, "contraction set"};
 }
 
 CommandResult RunControl::on_set_fibers(const Args& a) {
-  core::Simulator& sim = *sim_;
-  const core::TetMesh& mesh = sim_->model().mesh;
-  YAML::Node doc = YAML::Load(scene_doc_);
-  sim.set_fibers(io::parse_fibers(emit(a.node()), mesh, scene_.base_dir, "set_fibers"));
-  doc["fibers"] = YAML::Clone(a.node());
-  scene_doc_ = emit(doc);
+  io::FiberSpec spec;
+  sim_->set_fibers(io::read_fibers(io::Checks("set_fibers"), a.node(), sim_->model().mesh, scene_.base_dir, spec));
+  params_.fibers = spec;
   ++topology_version_;
   return {true, "fibers set"};
 }
 
 CommandResult RunControl::on_set_gravity(const Args& a) {
-  core::Simulator& sim = *sim_;
-  YAML::Node doc = YAML::Load(scene_doc_);
   if (!a.has("gravity")) throw Reject("needs 'gravity': [gx, gy, gz] in m/s^2");
   const Vec3 g = a.vec3("gravity");
   if (g.norm() > 1e4) throw Reject("'gravity' is larger than 1e4 m/s^2");
-  sim.set_gravity(g);
+  sim_->set_gravity(g);
   base_loads_.gravity_m_s2 = g;
-  doc["loads"]["gravity"] = std::vector<double>{g.x(), g.y(), g.z()};
-  scene_doc_ = emit(doc);
+  params_.gravity_m_s2 = g;
   return {true, "gravity set"};
 }
 
 CommandResult RunControl::on_set_time_step(const Args& a) {
-  core::Simulator& sim = *sim_;
-  YAML::Node doc = YAML::Load(scene_doc_);
   if (!a.has("dt")) throw Reject("needs 'dt' in s");
   const double dt = a.number("dt", 1e-6, 10);
-  sim.set_time_step(dt);
-  doc["solver"]["dt"] = dt;
-  scene_doc_ = emit(doc);
+  sim_->set_time_step(dt);
+  params_.solver.dt_s = dt;
   return {true, "time step set"};
 }
 
 CommandResult RunControl::on_set_solver(const Args& a) {
-  core::Simulator& sim = *sim_;
-  YAML::Node doc = YAML::Load(scene_doc_);
-  core::SolverSettings s = sim.settings().solver;
-  if (a.has("method")) {
-    const std::string m = a.text("method");
-    if (m != "pcg" && m != "direct") throw Reject("'method' must be pcg or direct");
-    s.method = m == "direct" ? core::LinearSolverKind::direct : core::LinearSolverKind::pcg;
-  }
-  if (a.has("preconditioner")) {
-    const std::string p = a.text("preconditioner");
-    if (p != "cholesky" && p != "block_jacobi" && p != "amg") throw Reject("'preconditioner' must be cholesky, block_jacobi or amg");
-    s.preconditioner = p == "cholesky" ? core::PreconditionerKind::cholesky
-                       : p == "amg"    ? core::PreconditionerKind::amg
-                                       : core::PreconditionerKind::block_jacobi;
-  }
-  if (a.has("tolerance")) s.tolerance = a.number("tolerance", 1e-14, 0.5);
-  if (a.has("max_iterations")) s.max_iterations = a.integer("max_iterations", 1, 1000000);
-  if (a.has("recycled_solutions")) s.recycled_solutions = a.integer("recycled_solutions", 0, 64);
-  core::RotationMethod rot = sim.settings().rotation;
-  if (a.has("rotation")) {
-    const std::string r = a.text("rotation");
-    if (r != "polar" && r != "svd") throw Reject("'rotation' must be polar or svd");
-    rot = r == "svd" ? core::RotationMethod::svd : core::RotationMethod::polar;
-  }
-  s.validate();
-  sim.set_solver_settings(s);
-  sim.set_rotation_method(rot);
-  for (const auto& kv : a.node()) doc["solver"][kv.first.as<std::string>()] = kv.second;
-  scene_doc_ = emit(doc);
+  io::SolverSpec given;  // the keys this command gives; the others stay as they run
+  const io::Checks& checks = a.checks();
+  if (a.has("method")) given.method = io::read_solver_method(checks, a["method"], "method");
+  if (a.has("preconditioner")) given.preconditioner = io::read_preconditioner(checks, a["preconditioner"], "preconditioner");
+  if (a.has("rotation")) given.rotation = io::read_rotation(checks, a["rotation"], "rotation");
+  if (a.has("tolerance")) given.tolerance = a.number("tolerance", 1e-14, 0.5);
+  if (a.has("max_iterations")) given.max_iterations = a.integer("max_iterations", 1, 1000000);
+  if (a.has("recycled_solutions")) given.recycled_solutions = a.integer("recycled_solutions", 0, 64);
+  const core::SimulatorSettings s = io::solver_settings(given, sim_->settings());
+  s.solver.validate();
+  sim_->set_solver_settings(s.solver);
+  sim_->set_rotation_method(s.rotation);
+  io::SolverSpec& kept = params_.solver;
+  if (given.method) kept.method = given.method;
+  if (given.preconditioner) kept.preconditioner = given.preconditioner;
+  if (given.rotation) kept.rotation = given.rotation;
+  if (given.tolerance) kept.tolerance = given.tolerance;
+  if (given.max_iterations) kept.max_iterations = given.max_iterations;
+  if (given.recycled_solutions) kept.recycled_solutions = given.recycled_solutions;
   return {true, "solver settings set"};
 }
 

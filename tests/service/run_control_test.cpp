@@ -8,6 +8,7 @@
 #include "io/scene.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 
@@ -217,6 +218,49 @@ TEST(RunControl, HeartRateChangeKeepsThePhaseAndSetsTheNewPeriod) {
   for (size_t k = 1; k < onsets.size(); ++k) EXPECT_NEAR(onsets[k] - onsets[k - 1], 0.5, 0.0021);
   // The first new beat starts one new period after the beat under way began (at 2 s).
   EXPECT_NEAR(onsets[0], 2.5, 0.0021);
+}
+
+// The parameter state after parameter commands of every family (its scene text written
+// from the running typed values) rebuilds a run that continues bit-for-bit, and writes the
+// same state again; a state in the form written before (the scene document with the
+// command's keys merged in) still restores.
+TEST(RunControl, ParameterStateAfterCommandsResumesBitForBit) {
+  RunControl rc(io::parse_scene(kBeam, "beam", "", {"contraction={peak_tension: 500, heart_rate: 60}"}));
+  run(rc, 5);
+  for (const auto& [kind, args] : std::vector<std::pair<const char*, const char*>>{
+           {"set_material", R"({"E_L": 90000.33333333333, "nu_T": 0.4})"},
+           {"set_damping", R"({"mass": 12.5})"},
+           {"set_contraction", R"({"period": 0.7, "twitch": {"tau1": 0.04}, "pacing": {"at": [0, 0, 0], "speed": 0.5}})"},
+           {"set_fibers", R"({"uniform": [1, 0.1, 0]})"},
+           {"set_gravity", R"({"gravity": [0, -1, -9.81]})"},
+           {"set_time_step", R"({"dt": 0.0075})"},
+           {"set_solver", R"({"tolerance": 1e-8, "rotation": "svd", "max_iterations": 300})"}}) {
+    const CommandResult r = rc.apply(kind, args);
+    ASSERT_TRUE(r.accepted) << kind << ": " << r.reason;
+  }
+  ASSERT_TRUE(rc.apply("apply_force", R"({"name": "p", "target": {"node_set": "xmax"}, "force": [0, 0, 1e-3]})").accepted);
+  run(rc, 5);
+  const std::string state = rc.parameter_state_json();
+  const core::SimulatorCheckpoint saved = rc.simulator().checkpoint();
+  const core::Positions a = run(rc, 20);
+
+  RunControl resumed(beam());
+  resumed.restore_parameter_state(state);
+  resumed.simulator().restore(saved);
+  EXPECT_EQ(resumed.simulator().settings().dt_s, 0.0075);
+  const core::Positions b = run(resumed, 20);
+  EXPECT_EQ((a - b).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(resumed.parameter_state_json(), state);
+  EXPECT_EQ(rc.running_scene().model.region_materials[0].stiffness(), rc.simulator().model().region_materials[0].stiffness());
+
+  RunControl earlier(beam());
+  std::string doc = kBeam;
+  doc.replace(doc.find("E_L: 60.0e3"), 11, "E_L: 120000");
+  earlier.restore_parameter_state(nlohmann::json{{"scene_yaml", doc}, {"forces", nlohmann::json::array()}}.dump());
+  RunControl commanded(beam());
+  ASSERT_TRUE(commanded.apply("set_material", R"({"E_L": 120e3})").accepted);
+  EXPECT_EQ(earlier.simulator().model().region_materials[0].stiffness(),
+            commanded.simulator().model().region_materials[0].stiffness());
 }
 
 }  // namespace

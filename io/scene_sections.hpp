@@ -1,0 +1,77 @@
+#pragma once
+/// @file The sections of a scene file (docs/scenes.md), each read from a checked YAML node
+/// and, for the sections a parameter command changes, written back from its typed value.
+///
+/// A reader reads `node` onto the typed value it is given: keys present replace, keys left
+/// out keep what the value had (the scene parser starts from an empty value, a command from
+/// the running one), so a command's arguments take the same keys, units and checks as the
+/// scene file. A reader returns the engine object it builds and changes the typed value
+/// only when the whole section is good. A writer is its reader's inverse:
+/// read(write(x)) gives x (tests/io/scene_sections_test.cpp).
+
+#include "core/mesh.hpp"
+#include "core/simulator.hpp"
+#include "io/checked_yaml.hpp"
+#include "io/scene_parameters.hpp"
+
+#include <string>
+#include <vector>
+
+namespace fiberfem::io {
+
+/// The keys of a material mapping: every form's and density.
+const std::vector<std::string>& material_keys();
+/// regions[i].material onto `spec`. A key of another form than spec's replaces the form
+/// (its missing keys are then errors); keys of the same form merge. `also_allowed` keys
+/// are accepted and left to the caller (a command's `region`).
+core::Material read_material(const Checks& checks, const YAML::Node& node, const std::string& path, MaterialSpec& spec,
+                             const std::vector<std::string>& also_allowed = {});
+/// The material mapping that its reader reads back to the same value.
+YAML::Node write_material(const MaterialSpec& spec);
+
+/// regions[i].damping.
+core::RayleighDamping read_damping(const Checks& checks, const YAML::Node& node, const std::string& path);
+/// The damping mapping that its reader reads back to the same value.
+YAML::Node write_damping(const core::RayleighDamping& damping);
+
+/// A node selector (plane, box or node_set); returns the nodes it matches (sorted), at
+/// least one. `spec` (optional) receives the selector.
+std::vector<int> read_node_selector(const Checks& checks, const YAML::Node& node, const std::string& path,
+                                    const core::TetMesh& mesh, NodeSelector* spec = nullptr,
+                                    const std::vector<std::string>& also_allowed = {});
+/// The selector mapping that its reader reads back to the same value.
+YAML::Node write_node_selector(const NodeSelector& selector);
+
+/// fibers: one whole field (it replaces `spec`), per element for `mesh`. Relative file
+/// paths are looked up in `base_dir`; the files read are appended to `files_read`.
+std::vector<core::Vec3> read_fibers(const Checks& checks, const YAML::Node& node, const core::TetMesh& mesh,
+                                    const std::string& base_dir, FiberSpec& spec,
+                                    std::vector<std::string>* files_read = nullptr);
+/// The fibers mapping that its reader reads back to the same value.
+YAML::Node write_fibers(const FiberSpec& spec);
+
+/// contraction onto `spec`, built and validated for `mesh` (regions by name). A
+/// heart_rate replaces a period and the other way round; a peak_tension without regions
+/// drops the per-region tensions; twitch keys merge.
+core::Contraction read_contraction(const Checks& checks, const YAML::Node& node, const core::TetMesh& mesh,
+                                   const std::vector<std::string>& region_names, ContractionSpec& spec);
+/// The contraction mapping (every twitch key written) that its reader reads back to the same value.
+YAML::Node write_contraction(const ContractionSpec& spec);
+
+/// solver.method, solver.preconditioner, solver.rotation by their scene names.
+core::LinearSolverKind read_solver_method(const Checks& checks, const YAML::Node& node, const std::string& path);
+core::PreconditionerKind read_preconditioner(const Checks& checks, const YAML::Node& node, const std::string& path);
+core::RotationMethod read_rotation(const Checks& checks, const YAML::Node& node, const std::string& path);
+/// solver onto `spec` (checked keys; settings are built with solver_settings).
+void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec);
+/// The solver mapping (the keys given; empty for none) that its reader reads back to the same value.
+YAML::Node write_solver(const SolverSpec& spec);
+/// The engine settings for `spec` over `base` (defaults, or a fidelity preset's).
+core::SimulatorSettings solver_settings(const SolverSpec& spec, core::SimulatorSettings base);
+
+/// The scene text `scene_yaml` with its parameter sections written from `parameters`
+/// (regions[i].material and .damping, fibers, contraction, loads.gravity, solver); the
+/// other keys as they are.
+std::string write_scene_parameters(const std::string& scene_yaml, const SceneParameters& parameters);
+
+}  // namespace fiberfem::io
