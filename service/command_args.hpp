@@ -38,14 +38,19 @@ class Args {
   bool boolean(const std::string& k) const { return map_.boolean(k); }
   /// Three numbers, each within +-1e12.
   Vec3 vec3(const std::string& k) const { return map_.vec3(k, 1e12); }
+  /// A whole number in [lo, hi] at key `k`, wider than int (a step or frame number).
+  long whole(const std::string& k, double lo, double hi) const { return whole_at(map_[k], k, lo, hi, ""); }
   /// A node index at key path `k`: a whole number in [0, num_nodes).
   int node_index(const YAML::Node& n, const std::string& k, int num_nodes) const {
-    const double v = checks_.number(n, k, 0, num_nodes - 1);
-    if (v != static_cast<double>(static_cast<long>(v))) throw Reject("'" + k + "' must be a whole number (a node index)");
-    return static_cast<int>(v);
+    return static_cast<int>(whole_at(n, k, 0, num_nodes - 1, " (a node index)"));
   }
 
  private:
+  long whole_at(const YAML::Node& n, const std::string& k, double lo, double hi, const char* what) const {
+    const double v = checks_.number(n, k, lo, hi);
+    if (v != static_cast<double>(static_cast<long>(v))) throw Reject("'" + k + "' must be a whole number" + what);
+    return static_cast<long>(v);
+  }
   static YAML::Node load(const std::string& text) {
     YAML::Node n;
     try {

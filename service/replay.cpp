@@ -7,6 +7,7 @@
 #include "service/replay.hpp"
 
 #include "service/archive/archive.hpp"
+#include "service/command_args.hpp"
 #include "service/run_endpoints.hpp"
 #include "service/run_topology.hpp"
 #include "service/stop_signals.hpp"
@@ -25,12 +26,10 @@ namespace fiberfem::service {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+using detail::Args;
+using detail::Reject;
 
 double seconds_between(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
-
-struct Reject : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
 
 // Region names and peak tensions from the archived scene text (the peak normalises the
 // published activation as the live service does).
@@ -52,29 +51,6 @@ void scene_facts(const std::string& yaml, int num_regions, std::vector<std::stri
   } catch (const YAML::Exception&) {
     // An unreadable scene text leaves names empty and activation in Pa / 1 (documented).
   }
-}
-
-double number_arg(const YAML::Node& args, const char* key, double lo, double hi) {
-  double v = 0;
-  try {
-    v = args[key].as<double>();
-  } catch (const YAML::Exception&) {
-    throw Reject(std::string("'") + key + "' must be a number");
-  }
-  if (!std::isfinite(v)) throw Reject(std::string("'") + key + "' is not finite");
-  if (v < lo || v > hi) {
-    std::ostringstream m;
-    m << "'" << key << "' = " << v << " is out of range [" << lo << ", " << hi << "]";
-    throw Reject(m.str());
-  }
-  return v;
-}
-
-// A whole number in [lo, hi] (a count or a frame).
-long whole_arg(const YAML::Node& args, const char* key, double lo, double hi) {
-  const double v = number_arg(args, key, lo, hi);
-  if (v != std::floor(v)) throw Reject(std::string("'") + key + "' must be a whole number");
-  return static_cast<long>(v);
 }
 
 // The archive as a frame source: its frames' times and steps, the frame shown and the
@@ -179,24 +155,14 @@ struct Controls {
   unsigned version = 0;  // bumped by every accepted command
 };
 
-// Refuses an argument not in `keys`.
-void allow_only(const YAML::Node& args, const std::string& kind, std::initializer_list<const char*> keys) {
-  for (const auto& kv : args) {
-    if (!kv.first.IsScalar()) throw Reject("argument names must be words, not lists or objects");
-    const std::string k = kv.first.as<std::string>();
-    if (std::none_of(keys.begin(), keys.end(), [&](const char* a) { return k == a; }))
-      throw Reject("unknown argument '" + k + "' for " + kind);
-  }
-}
-
-std::string seek(Playback& p, const YAML::Node& args) {
-  if (static_cast<bool>(args["time"]) == static_cast<bool>(args["frame"])) throw Reject("give exactly one of 'time' (s) and 'frame'");
+std::string seek(Playback& p, const Args& a) {
+  if (a.has("time") == a.has("frame")) throw Reject("give exactly one of 'time' (s) and 'frame'");
   if (p.frames() == 0) throw Reject("the archive has no frames yet");
   long i = 0;
-  if (args["time"]) {
-    i = p.frame_at_time(number_arg(args, "time", 0, 1e12));
+  if (a.has("time")) {
+    i = p.frame_at_time(a.number("time", 0, 1e12));
   } else {
-    const long step = whole_arg(args, "frame", 0, 1e15);
+    const long step = a.whole("frame", 0, 1e15);
     i = p.frame_of_step(step);
     if (i >= p.frames()) throw Reject("no frame " + std::to_string(step) + " (last is " + std::to_string(p.last_step()) + ")");
   }
@@ -204,45 +170,34 @@ std::string seek(Playback& p, const YAML::Node& args) {
   return "at frame " + std::to_string(p.step()) + ", t = " + std::to_string(p.clock_s()) + " s";
 }
 
-// The service's run controls plus seek, rate and loop.
-std::string apply(Playback& p, Controls& c, const std::string& kind, const YAML::Node& args) {
-  if (kind == "pause") {
-    allow_only(args, kind, {});
-    c.paused = true, c.ordered_steps = 0;
-    return "paused";
-  }
-  if (kind == "resume") {
-    allow_only(args, kind, {});
-    c.paused = false, c.ordered_steps = 0;
-    return "playing";
+// The service's run controls plus seek, rate and loop; `text` is the arguments (JSON),
+// checked against what `kind` allows before anything changes.
+std::string apply(Playback& p, Controls& c, const std::string& kind, const std::string& text) {
+  if (kind == "pause" || kind == "resume") {
+    Args a(text, {});
+    c.paused = kind == "pause", c.ordered_steps = 0;
+    return c.paused ? "paused" : "playing";
   }
   if (kind == "step") {
-    allow_only(args, kind, {"count"});
-    const long n = args["count"] ? whole_arg(args, "count", 1, 1e6) : 1;
+    Args a(text, {"count"});
+    const long n = a.has("count") ? a.whole("count", 1, 1e6) : 1;
     c.paused = true, c.ordered_steps += n;
     return std::to_string(n) + " frames ordered, then paused";
   }
-  if (kind == "seek") {
-    allow_only(args, kind, {"time", "frame"});
-    return seek(p, args);
-  }
+  if (kind == "seek") return seek(p, Args(text, {"time", "frame"}));
   if (kind == "set_rate") {
-    allow_only(args, kind, {"rate"});
-    if (!args["rate"]) throw Reject("needs 'rate' (archive seconds per wall second)");
-    c.rate = number_arg(args, "rate", 1e-3, 1000);
+    Args a(text, {"rate"});
+    if (!a.has("rate")) throw Reject("needs 'rate' (archive seconds per wall second)");
+    c.rate = a.number("rate", 1e-3, 1000);
     return "rate set";
   }
   if (kind == "loop") {
-    allow_only(args, kind, {"on"});
-    try {
-      c.loop = args["on"] ? args["on"].as<bool>() : true;
-    } catch (const YAML::Exception&) {
-      throw Reject("'on' must be true or false");
-    }
+    Args a(text, {"on"});
+    c.loop = a.has("on") ? a.boolean("on") : true;
     return c.loop ? "looping" : "not looping";
   }
   if (kind == "shutdown") {
-    allow_only(args, kind, {});
+    Args a(text, {});
     c.shutdown = true;
     return "shutting down";
   }
@@ -251,14 +206,9 @@ std::string apply(Playback& p, Controls& c, const std::string& kind, const YAML:
 
 CommandReply apply_command(Playback& p, Controls& c, const std::string& kind, const std::string& text) {
   try {
-    YAML::Node args = YAML::Load(text.empty() ? "{}" : text);
-    if (args.IsNull()) args = YAML::Node(YAML::NodeType::Map);
-    if (!args.IsMap()) throw Reject("arguments must be a JSON object");
-    CommandReply r{true, apply(p, c, kind, args)};
+    CommandReply r{true, apply(p, c, kind, text)};
     ++c.version;
     return r;
-  } catch (const YAML::Exception& e) {
-    return {false, "arguments are not valid JSON: " + e.msg};
   } catch (const std::exception& e) {
     return {false, e.what()};
   }

@@ -14,6 +14,7 @@ class ArchiveWriter {};  // never made: recording refuses in a build without HDF
 #include <stdexcept>
 
 namespace fiberfem::service {
+#ifndef FIBERFEM_HAVE_ARCHIVE
 namespace {
 
 [[noreturn]] void no_archive(const std::string& what) {
@@ -21,6 +22,7 @@ namespace {
 }
 
 }  // namespace
+#endif
 
 bool has_archive() {
 #ifdef FIBERFEM_HAVE_ARCHIVE
