@@ -43,6 +43,10 @@ void ThreadGovernor::start_probe(int count) {
 
 void ThreadGovernor::end_probe(bool switch_to_probe) {
   probing_ = false;
+  // After the first probe the periodic ones keep their schedule (the next at step
+  // kMinInterval), so the early look costs no more probes than before it.
+  const int next = first_probe_ ? std::max(1, kMinInterval - kFirstProbe - kFirstProbeSteps) : interval_;
+  first_probe_ = false;
   if (probe_filled_ > 0) remember(probe_, probe_sum_s_ / probe_filled_);
   if (switch_to_probe) {
     remember(current_, mean_s_);
@@ -50,7 +54,7 @@ void ThreadGovernor::end_probe(bool switch_to_probe) {
     mean_s_ = probe_sum_s_ / probe_filled_;  // the probe's steps start the new running mean
     measured_ = probe_filled_;
   }
-  until_probe_ = interval_;
+  until_probe_ = next;
 }
 
 void ThreadGovernor::record(double step_s, bool comparable) {
@@ -68,9 +72,9 @@ void ThreadGovernor::record(double step_s, bool comparable) {
       end_probe(false);
       return;
     }
-    if (probe_filled_ < kProbeSteps) return;
-    const bool wins = probe_sum_s_ / probe_filled_ < kSwitchGain * mean_s_;
-    if (!wins) longer_interval();
+    if (probe_filled_ < (first_probe_ ? kFirstProbeSteps : kProbeSteps)) return;
+    const bool wins = probe_sum_s_ / probe_filled_ < (first_probe_ ? kFirstProbeGain : kSwitchGain) * mean_s_;
+    if (!wins && !first_probe_) longer_interval();
     end_probe(wins);
     return;
   }
@@ -84,6 +88,7 @@ void ThreadGovernor::record(double step_s, bool comparable) {
     // Leaving a count because it stalls makes the probes back to it four times rarer.
     longer_interval();
     longer_interval();
+    first_probe_ = false;  // judged as any later probe
     start_probe(lower(current_));
     return;
   }

@@ -34,8 +34,14 @@ class ThreadGovernor {
   static constexpr int kMinInterval = 64;
   /// Steps before the first probe: soon, so that a machine whose other cores are taken
   /// from the start (every step slow alike, no stall to notice) is left within a short
-  /// run; once, at the cost of kProbeSteps steps on fewer threads on a quiet machine.
+  /// run; once, at the cost of kFirstProbeSteps steps on fewer threads on a quiet machine.
   static constexpr int kFirstProbe = 8;
+  /// Steps of the first probe: enough to see a count that does not work at all.
+  static constexpr int kFirstProbeSteps = 3;
+  /// The first probe takes over only when its mean is below this fraction of the running
+  /// mean: it is there for a count that does not work at all, and a mean over the first
+  /// few steps is too noisy to decide a 10 % difference (the later probes do that).
+  static constexpr double kFirstProbeGain = 0.5;
   /// Comparable steps at a count before its running mean is trusted (stalls and probes
   /// wait for them).
   static constexpr int kSettleSteps = 8;
@@ -79,6 +85,7 @@ class ThreadGovernor {
   int interval_ = kMinInterval;
   bool probe_down_ = true;  // which neighbour the next periodic probe tries
   bool probing_ = false;
+  bool first_probe_ = true;  // the next (or running) probe is the first
   int probe_ = 1;
   double probe_sum_s_ = 0;
   int probe_filled_ = 0;

@@ -170,6 +170,18 @@ TEST(ThreadGovernor, AMachineBusyFromTheStartIsLeftWithinTheFirstSteps) {
   EXPECT_LE(r.wall_s, (ThreadGovernor::kFirstProbe + 0.5) * 200e-3 + 60 * 2.0e-3);
 }
 
+// The first probe only catches a count that does not work at all: one thread 20 % faster
+// (a real but modest difference, within what a mean of the first few steps can get wrong)
+// is left to the later probes.
+TEST(ThreadGovernor, TheFirstProbeDecidesOnlyLargeDifferences) {
+  ThreadGovernor g(2);
+  const auto one_faster = [](int t, int) { return t == 1 ? 0.8e-3 : 1.0e-3; };
+  drive(g, ThreadGovernor::kFirstProbe + ThreadGovernor::kFirstProbeSteps, one_faster);
+  EXPECT_EQ(g.settled(), 2) << "the first probe switched for a 20 % difference";
+  drive(g, ThreadGovernor::kMinInterval + ThreadGovernor::kProbeSteps + 1, one_faster);
+  EXPECT_EQ(g.settled(), 1) << "the next probe should take the faster count";
+}
+
 TEST(ThreadGovernor, StepsThatAreNotComparableAreLeftOut) {
   ThreadGovernor g(2);
   // Steps with other work (factorisations, retries) are not comparable: here they are slow
