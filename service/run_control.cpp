@@ -38,12 +38,16 @@ std::string RunControl::parameter_state_json() const {
     forces.push_back({{"name", name}, {"nodes", f.nodes}, {"force_n", fn},
                       {"until_s", std::isfinite(f.until_s) ? nlohmann::json(f.until_s) : nlohmann::json()}});
   }
-  return nlohmann::json{{"scene_yaml", io::write_scene_parameters(scene_doc_, params_)}, {"forces", forces}}.dump();
+  return nlohmann::json{{"scene_yaml", scene_text()}, {"forces", forces}}.dump();
+}
+
+const std::string& RunControl::scene_text() const {
+  if (scene_text_.empty()) scene_text_ = io::write_scene_parameters(scene_doc_, params_);
+  return scene_text_;
 }
 
 io::Scene RunControl::running_scene() const {
-  io::Scene s = io::parse_scene(io::write_scene_parameters(scene_doc_, params_), scene_.name + " (running)",
-                                scene_.base_dir, {}, files_);
+  io::Scene s = io::parse_scene(scene_text(), scene_.name + " (running)", scene_.base_dir, {}, files_);
   s.archive = scene_.archive;
   return s;
 }
@@ -74,6 +78,7 @@ void RunControl::restore_parameter_state(const std::string& text) {
   forces_ = std::move(forces);
   scene_doc_ = doc;
   params_ = std::move(s.parameters);
+  scene_text_.clear();
   refresh_loads();
   ++topology_version_;
 }
@@ -92,8 +97,8 @@ const std::vector<RunControl::Entry>& RunControl::table() {
         {"step", {"count"}, &RunControl::on_step, true},
         {"reset", {"parameters"}, &RunControl::on_reset, true},
         {"shutdown", {}, &RunControl::on_shutdown, true},
-        {"apply_force", {"name", "target", "force", "magnitude", "along", "duration"}, &RunControl::on_apply_force, true},
-        {"clear_force", {"name"}, &RunControl::on_clear_force, true},
+        {"apply_force", {"name", "target", "force", "magnitude", "along", "duration"}, &RunControl::on_apply_force, true, false},
+        {"clear_force", {"name"}, &RunControl::on_clear_force, true, false},
         {"set_material", material, &RunControl::on_set_material, true},
         {"set_damping", {"region", "mass", "stiffness"}, &RunControl::on_set_damping, true},
         {"set_contraction", {"mode", "peak_tension", "heart_rate", "period", "twitch", "regions", "pacing"},
@@ -142,6 +147,7 @@ CommandResult RunControl::apply(const std::string& kind, const std::string& args
       return recording_(kind, args);
     }
     const Args a(args, entry->args);
+    if (entry->changes_parameters) scene_text_.clear();  // before: a handler may change params_ and then throw
     CommandResult r = (this->*entry->handler)(a);
     r.accepted = true;
     if (entry->changes_run) ++version_;

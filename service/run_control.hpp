@@ -99,6 +99,9 @@ class RunControl {
     std::vector<std::string> args;
     Handler handler;
     bool changes_run;
+    /// Whether the handler may change the parameter sections (the written scene text is
+    /// then written again when next asked for). True unless the row says otherwise.
+    bool changes_parameters = true;
   };
   static const std::vector<Entry>& table();
   // Handlers, by family: run_control_flow.cpp, _forces.cpp, _parameters.cpp.
@@ -124,6 +127,10 @@ class RunControl {
   io::Scene scene_;             // as loaded (reset with parameters restores it)
   std::string scene_doc_;       // the scene text the parameter sections are written into (loaded or restored)
   io::SceneParameters params_;  // the running parameter sections (the scene's, commands read onto them)
+  // scene_doc_ with params_ written in (io::write_scene_parameters), kept between the
+  // commands that change params_; empty: to be written at the next use.
+  mutable std::string scene_text_;
+  const std::string& scene_text() const;
   const io::EmbeddedFiles* files_ = nullptr;
   struct Saved {
     core::SimulatorCheckpoint state;

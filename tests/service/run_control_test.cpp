@@ -224,6 +224,31 @@ TEST(RunControl, HeartRateChangeKeepsThePhaseAndSetsTheNewPeriod) {
 // from the running typed values) rebuilds a run that continues bit-for-bit, and writes the
 // same state again; a state in the form written before (the scene document with the
 // command's keys merged in) still restores.
+// The scene text the parameter state carries is kept between commands: each parameter
+// command must show in the next state asked for, and a force must not rewrite it.
+TEST(RunControl, TheRecordedSceneFollowsEveryParameterCommand) {
+  RunControl rc(io::parse_scene(kBeam, "beam", "", {"contraction={peak_tension: 500, heart_rate: 60}"}));
+  const auto scene_yaml = [&] { return nlohmann::json::parse(rc.parameter_state_json())["scene_yaml"].get<std::string>(); };
+  for (const auto& [kind, args] : std::vector<std::pair<const char*, const char*>>{
+           {"set_material", R"({"E_L": 90000})"},
+           {"set_damping", R"({"mass": 12.5})"},
+           {"set_contraction", R"({"period": 0.7})"},
+           {"set_fibers", R"({"uniform": [1, 0.1, 0]})"},
+           {"set_gravity", R"({"gravity": [0, -1, -9.81]})"},
+           {"set_time_step", R"({"dt": 0.0075})"},
+           {"set_solver", R"({"tolerance": 1e-8})"}}) {
+    const std::string before = scene_yaml();
+    ASSERT_TRUE(rc.apply(kind, args).accepted) << kind;
+    EXPECT_NE(scene_yaml(), before) << kind << " does not show in the recorded scene";
+  }
+  const std::string before = scene_yaml();
+  ASSERT_TRUE(rc.apply("apply_force", R"({"name": "p", "target": {"node_set": "xmax"}, "force": [0, 0, 1e-3]})").accepted);
+  EXPECT_EQ(scene_yaml(), before);
+  EXPECT_EQ(nlohmann::json::parse(rc.parameter_state_json())["forces"].size(), 1u);
+  ASSERT_TRUE(rc.apply("reset", R"({"parameters": true})").accepted);
+  EXPECT_EQ(rc.running_scene().model.loads.gravity_m_s2, beam().model.loads.gravity_m_s2) << "reset's scene";
+}
+
 TEST(RunControl, ParameterStateAfterCommandsResumesBitForBit) {
   RunControl rc(io::parse_scene(kBeam, "beam", "", {"contraction={peak_tension: 500, heart_rate: 60}"}));
   run(rc, 5);
