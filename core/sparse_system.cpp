@@ -129,17 +129,24 @@ void SparseSystem::build_scatter() {
     for (int a = 0; a < 4; ++a)
       for (int c = 0; c < 3; ++c) all_free = all_free && free_index_[static_cast<size_t>(3 * tets_[e][a] + c)] >= 0;
     if (all_free) {
-      for (int a = 0; a < 4; ++a)
-        for (int b = 0; b < 4; ++b)
+      // One search per node pair: a node's three rows have the same columns (the pattern
+      // holds whole node blocks), so rows 2 and 3 find the block at the same offset as row 1
+      // (at 250,000 tets, 96 searches per element took 0.4 s of the setup).
+      const int* outer = A_.outerIndexPtr();
+      const int* inner = A_.innerIndexPtr();
+      for (int a = 0; a < 4; ++a) {
+        const int r0 = free_index_[static_cast<size_t>(3 * tets_[e][a])];
+        for (int b = 0; b < 4; ++b) {
+          const int col = free_index_[static_cast<size_t>(3 * tets_[e][b])];
+          const int offset = value_index(r0, col) - outer[r0];
           for (int i = 0; i < 3; ++i) {
-            const int r = free_index_[static_cast<size_t>(3 * tets_[e][a] + i)];
-            const int col = free_index_[static_cast<size_t>(3 * tets_[e][b])];
-            const int first = value_index(r, col);
-            // The node's three columns follow one another in the row (free indices are
-            // in DOF order and the pattern holds whole node blocks).
-            if (value_index(r, col + 2) != first + 2) throw std::logic_error("sparse pattern: node block not contiguous");
+            const int first = outer[r0 + i] + offset;
+            if (first + 2 >= outer[r0 + i + 1] || inner[first] != col || inner[first + 2] != col + 2)
+              throw std::logic_error("sparse pattern: node block not contiguous");
             block_scatter_[e * kBlockIndices + static_cast<size_t>((4 * a + b) * 3 + i)] = first;
           }
+        }
+      }
       continue;
     }
     general_offset_[e] = static_cast<int>(general_scatter_.size());

@@ -216,6 +216,30 @@ TEST(TetGen, SameMeshAsTheGmshFile) {
   EXPECT_THROW(fio::read_tetgen(n3, "m.node", e3, "m.ele"), fio::MeshFileError);
 }
 
+// The numbers of a TetGen file are read as a string stream reads them (the reader parses
+// with from_chars): every token below is accepted or refused the same way, and an
+// accepted one gives the stream's value, bit for bit.
+TEST(TetGen, NumbersReadAsAStringStreamReadsThem) {
+  const std::string node = "5 3 0 0\n0 0 0 -1\n1 1 0 0\n2 0 1 0\n3 -1 -1 0\n4 0 0 1\n";
+  const std::string ele = "2 4 0\n0 0 1 3 2\n1 4 3 2 1\n";
+  for (const std::string tok : {"+1.5", "1.5", "-2.5e-3", "1E2", ".5", "5.", "-0", "1.5x", "x", "nan", "inf", "-inf",
+                                "+-1", "++1", "1e400", "0x10", "1..5", "-", "+", "1e", "3.0000000000000004"}) {
+    std::istringstream ref(tok);
+    double expected = 0;
+    const bool stream_reads = static_cast<bool>(ref >> expected) && ref.eof();
+    std::istringstream n(replace_once(node, "4 0 0 1\n", "4 0 0 " + tok + "\n")), e(ele);
+    try {
+      const core::TetMesh m = fio::read_tetgen(n, "f.node", e, "f.ele");
+      EXPECT_TRUE(stream_reads) << "'" << tok << "' was read, a stream refuses it";
+      EXPECT_EQ(m.rest_positions()(2, 4), expected) << tok;
+    } catch (const fio::MeshFileError& err) {
+      EXPECT_FALSE(stream_reads && expected > 0) << "'" << tok << "' refused: " << err.what();
+    }
+  }
+  std::istringstream n(node), e(replace_once(ele, "1 4 3 2 1", "1 +4 3 2 1.5"));
+  EXPECT_THROW(fio::read_tetgen(n, "f.node", e, "f.ele"), fio::MeshFileError);  // a point id 1.5
+}
+
 // Legacy VTK: the two tetrahedra with a triangle cell to ignore and region tags in
 // CELL_DATA, points spread over lines as VTK allows: the same mesh as the gmsh file.
 TEST(Vtk, SameMeshAsTheGmshFile) {
