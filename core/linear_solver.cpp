@@ -40,6 +40,15 @@ SolverSettings with_cost_refresh(SolverSettings s) {
   return s;
 }
 
+const char* to_string(FirstFactorisation f) {
+  switch (f) {
+    case FirstFactorisation::automatic: return "auto";
+    case FirstFactorisation::wait: return "wait";
+    case FirstFactorisation::beside: return "beside";
+  }
+  return "auto";
+}
+
 void SolverSettings::validate() const {
   if (refresh_iterations < 1)
     throw std::invalid_argument("solver: refresh_iterations must be >= 1, got " + std::to_string(refresh_iterations));

@@ -44,6 +44,29 @@ constexpr double kAmgSetupIterations = 32.0;
 /// "pcg" or "direct".
 const char* to_string(LinearSolverKind k);
 
+/// When the cholesky preconditioner's first factor of a matrix family is made.
+enum class FirstFactorisation {
+  /// `beside` for systems of at least kBesideMinRows free DOFs, else `wait` (on any thread
+  /// count, so that runs on any count stay the same bits; `beside` takes a thread more
+  /// while it runs, `wait` keeps a run on its count of cores).
+  automatic,
+  /// The step waits for it (a large mesh's first step takes the factorisation's time:
+  /// 3.7 s at 250,000 tets).
+  wait,
+  /// It is made on a thread beside the steps, which meanwhile solve with block Jacobi;
+  /// it takes over at the first solve after they have run kBesideIterations iterations
+  /// (fewer below 32,000 rows: rows / 32), waiting for it there if it is not done. A count,
+  /// not a clock, so a run and its restore from a checkpoint switch at the same step.
+  beside,
+};
+const char* to_string(FirstFactorisation f);
+/// Fewest free DOFs for FirstFactorisation::automatic to factorise beside the steps.
+inline constexpr int kBesideMinRows = 20000;
+/// Block-Jacobi iterations run before a factor made beside the steps takes over (what a
+/// factorisation cost in such iterations on the beams of docs/vega-comparison.md: about
+/// 900 at 50,000 tets, 1,100 at 250,000, one core each).
+inline constexpr int kBesideIterations = 1000;
+
 /// Settings of the linear solve. Defaults are the engine's `balanced` choice.
 struct SolverSettings {
   LinearSolverKind method = LinearSolverKind::pcg;  ///< pcg | direct. Default pcg.
@@ -77,6 +100,9 @@ struct SolverSettings {
   /// A step whose relative residual ends above this counts as failed (rolled back and
   /// retried with substeps), in (0, inf). Default 1e-2.
   double failure_residual = 1e-2;
+  /// With the cholesky preconditioner: when the first factor of each matrix family is
+  /// made (FirstFactorisation). Default automatic.
+  FirstFactorisation first_factorisation = FirstFactorisation::automatic;
   /// @throws std::invalid_argument naming the field.
   void validate() const;
 };
@@ -125,6 +151,11 @@ struct LinearSolverState {
     double excess = 0;               ///< Iterations beyond `baseline` summed over later solves.
     double key = 0;                  ///< Matrix family (step size h, s).
     long last_used = 0;              ///< Clock of the last use.
+    /// A factorisation of `matrix_values` (at `at_factor`) was under way beside the steps
+    /// (FirstFactorisation::beside): restarted on restore, it takes over after
+    /// `beside_left` more fallback iterations.
+    bool beside = false;
+    double beside_left = 0;
   };
   std::vector<Factor> factors;       ///< In slot order.
 };
@@ -147,6 +178,9 @@ class LinearSolver {
   virtual std::string name() const = 0;
   /// The factor of the last solve (solvers without one: factored false).
   virtual FactorInfo factor_info() const { return {}; }
+  /// Threads busy with factorisations beside the steps now (FirstFactorisation::beside):
+  /// the step leaves them their cores.
+  virtual int threads_beside() const { return 0; }
   /// Node blocks of the free DOFs for block preconditioners: rows starts[k] .. starts[k+1]-1
   /// belong to one node. Ignored by solvers that need none.
   virtual void set_blocks(std::vector<int> /*starts*/) {}

@@ -61,9 +61,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   update_node_masses();
   refresh_external_forces();
   check_solver_fits(settings_.solver);
-  solver_ = make_linear_solver(settings_.solver);
-  solver_->set_blocks(sys_.node_block_starts());
-  solver_->set_system(&sys_);
+  install_solver(settings_.solver);
   st_.R.assign(static_cast<size_t>(ne), Mat3::Identity());
   st_.q.assign(static_cast<size_t>(ne), Eigen::Quaterniond::Identity());
   if (model_.contraction.enabled()) {  // per-step tensions come from the schedule

@@ -197,6 +197,7 @@ class Simulator {
   void refresh_external_forces();
   /// @throws std::invalid_argument when `s` cannot work on this system (amg needs whole node blocks).
   void check_solver_fits(const SolverSettings& s) const;
+  void install_solver(const SolverSettings& s);
 
   Model model_;
   SimulatorState st_;  // everything a checkpoint saves besides the solver's memory

@@ -83,6 +83,10 @@ void Simulator::set_solver_settings(const SolverSettings& s) {
   check_solver_fits(s);
   settings_.solver = s;
   assembled_ahead_ = false;
+  install_solver(s);
+}
+
+void Simulator::install_solver(const SolverSettings& s) {
   solver_ = make_linear_solver(s);
   solver_->set_blocks(sys_.node_block_starts());
   solver_->set_system(&sys_);

@@ -215,7 +215,10 @@ StepReport Simulator::step() {
   // The thread count of this step: the user's, or the governor's (core/thread_governor.hpp).
   // Set on every step: the count is per calling thread in OpenMP, and another simulator
   // stepped on this thread may have set its own.
-  const int nthreads = settings_.threads > 0 ? settings_.threads : governor_.threads();
+  // Fewer by the threads of factorisations running beside the steps: a parallel loop
+  // whose threads outnumber the cores waits at each barrier for a descheduled one.
+  const int beside = solver_->threads_beside();
+  const int nthreads = std::max(1, (settings_.threads > 0 ? settings_.threads : governor_.threads()) - beside);
   omp_set_num_threads(nthreads);
   const auto t0 = Clock::now();
   StepReport r;
@@ -286,10 +289,10 @@ StepReport Simulator::step() {
   r.time.total_s = seconds_since(t0);
   r.threads = nthreads;
   // Steps that did other work than the usual step (a retry; a factorisation, except with
-  // the direct solver, which factorises every step) are not compared.
+  // the direct solver, which factorises every step; one beside them) are not compared.
   if (settings_.threads == 0)
-    governor_.record(r.time.total_s, r.attempts == 1 && (r.solver_factorizations == 0 ||
-                                                         settings_.solver.method == LinearSolverKind::direct));
+    governor_.record(r.time.total_s, r.attempts == 1 && beside == 0 &&
+                                         (r.solver_factorizations == 0 || settings_.solver.method == LinearSolverKind::direct));
   return r;
 }
 

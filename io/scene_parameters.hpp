@@ -101,6 +101,7 @@ struct SolverSpec {
   std::optional<int> recycled_solutions;
   std::optional<int> threads;
   std::optional<bool> corotation;
+  std::optional<core::FirstFactorisation> first_factorisation;
 };
 
 /// Every section of a scene that a parameter command can change.

@@ -19,6 +19,9 @@ const Names<core::PreconditionerKind> kPreconditioners = {{"cholesky", core::Pre
                                                           {"block_jacobi", core::PreconditionerKind::block_jacobi},
                                                           {"amg", core::PreconditionerKind::amg}};
 const Names<core::RotationMethod> kRotations = {{"svd", core::RotationMethod::svd}, {"polar", core::RotationMethod::polar}};
+const Names<core::FirstFactorisation> kFirstFactorisations = {{"auto", core::FirstFactorisation::automatic},
+                                                               {"wait", core::FirstFactorisation::wait},
+                                                               {"beside", core::FirstFactorisation::beside}};
 const Names<Mode> kModes = {{"dynamic", Mode::dynamic}, {"static", Mode::static_}};
 
 template <class E>
@@ -64,7 +67,7 @@ core::RotationMethod read_rotation(const Checks& checks, const YAML::Node& n, co
 void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec) {
   const CheckedMap s(checks, node, "solver",
                      {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
-                      "max_energy_gain", "until", "recycled_solutions", "threads", "corotation"});
+                      "max_energy_gain", "until", "recycled_solutions", "threads", "corotation", "first_factorisation"});
   SolverSpec r = spec;
   if (s.has("threads")) r.threads = s.integer("threads", 0, 1024);
   if (s.has("recycled_solutions")) r.recycled_solutions = s.integer("recycled_solutions", 0, 64);
@@ -77,6 +80,8 @@ void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec)
   if (s.has("rotation")) r.rotation = read_rotation(checks, s["rotation"], "solver.rotation");
   if (s.has("preconditioner")) r.preconditioner = read_preconditioner(checks, s["preconditioner"], "solver.preconditioner");
   if (s.has("corotation")) r.corotation = s.boolean("corotation");
+  if (s.has("first_factorisation"))
+    r.first_factorisation = read_name(checks, s["first_factorisation"], "solver.first_factorisation", kFirstFactorisations);
   if (s.has("warm_start")) r.warm_start = s.boolean("warm_start");
   if (s.has("max_energy_gain")) {
     const YAML::Node g = s["max_energy_gain"];
@@ -97,6 +102,7 @@ core::SimulatorSettings solver_settings(const SolverSpec& s, core::SimulatorSett
   if (s.rotation) st.rotation = *s.rotation;
   if (s.preconditioner) st.solver.preconditioner = *s.preconditioner;
   if (s.corotation) st.corotation = *s.corotation;
+  if (s.first_factorisation) st.solver.first_factorisation = *s.first_factorisation;
   if (s.warm_start) st.solver.warm_start = *s.warm_start;
   if (s.max_energy_gain) st.max_energy_gain = *s.max_energy_gain;
   return st;
@@ -117,6 +123,7 @@ YAML::Node write_solver(const SolverSpec& s) {
   if (s.recycled_solutions) n["recycled_solutions"] = *s.recycled_solutions;
   if (s.threads) n["threads"] = *s.threads;
   if (s.corotation) n["corotation"] = *s.corotation;
+  if (s.first_factorisation) n["first_factorisation"] = name_of(*s.first_factorisation, kFirstFactorisations);
   return n;
 }
 

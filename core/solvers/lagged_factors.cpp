@@ -3,29 +3,92 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <chrono>
+#include <vector>
 #include <stdexcept>
 #include <string>
 
 namespace fiberfem::core::detail {
+namespace {
 
-FactorSlot& LaggedFactors::select_slot() {
+SparseMatrix with_values(const SparseMatrix& pattern, const Eigen::VectorXd& values) {
+  SparseMatrix A = pattern;
+  Eigen::Map<Eigen::VectorXd>(A.valuePtr(), A.nonZeros()) = values;
+  return A;
+}
+
+}  // namespace
+
+FactorSlot& LaggedFactors::select_slot(SolveStats& st) {
   ++clock_;
-  FactorSlot* lru = nullptr;
+  // Finished factors of retired slots are dropped (their threads joined, briefly).
+  retired_.erase(std::remove_if(retired_.begin(), retired_.end(),
+                                [](const auto& b) { return b->job.wait_for(std::chrono::seconds(0)) == std::future_status::ready; }),
+                 retired_.end());
+  std::unique_ptr<FactorSlot>* lru = nullptr;
   for (auto& sl : slots_) {
     if (sl->key == key_) {
       sl->last_used = clock_;
+      if (sl->beside && sl->beside->left <= 0) adopt_beside(sl, st);
       return *sl;
     }
-    if (!lru || sl->last_used < lru->last_used) lru = sl.get();
+    if (!lru || sl->last_used < (*lru)->last_used) lru = &sl;
   }
   if (slots_.size() < kSlots) {
     slots_.push_back(std::make_unique<FactorSlot>());
-    lru = slots_.back().get();
+    lru = &slots_.back();
   }
-  lru->key = key_;
-  lru->stale = true;
-  lru->last_used = clock_;
-  return *lru;
+  FactorSlot& slot = **lru;
+  retire(slot);
+  slot.key = key_;
+  slot.stale = true;
+  slot.last_used = clock_;
+  return slot;
+}
+
+// The factor made beside the steps replaces the slot that started it: the same family
+// and use, its own factor and age.
+void LaggedFactors::adopt_beside(std::unique_ptr<FactorSlot>& sl, SolveStats& st) {
+  const std::shared_ptr<BesideFactor> b = std::move(sl->beside);
+  b->job.wait();
+  std::unique_ptr<FactorSlot> made = std::move(b->made);
+  made->rows = b->matrix.rows();
+  made->stale = !made->factor.ok();
+  made->key = sl->key;
+  made->last_used = sl->last_used;
+  if (warp_.slot == sl.get()) warp_.slot = nullptr;
+  sl = std::move(made);
+  ++st.factorizations;
+}
+
+bool LaggedFactors::factor_beside(const SparseMatrix& A, const FactorSlot& slot) const {
+  if (s_.preconditioner != PreconditionerKind::cholesky || ok(slot) || slot.beside) return false;
+  return s_.first_factorisation == FirstFactorisation::beside ||
+         (s_.first_factorisation == FirstFactorisation::automatic && A.rows() >= kBesideMinRows);
+}
+
+double LaggedFactors::beside_iterations(const SparseMatrix& A) {
+  return std::min<double>(kBesideIterations, static_cast<double>(A.rows()) / 32.0);
+}
+
+void LaggedFactors::start_beside(const SparseMatrix& A, FactorSlot& slot, const std::vector<Mat3>& at, double left) {
+  auto b = std::make_shared<BesideFactor>();
+  b->matrix = A;
+  b->left = left;
+  b->made->at_factor = at;
+  const bool single = s_.single_precision_preconditioner;
+  BesideFactor* job = b.get();
+  // One thread: the steps keep the others (OpenMP's count is per thread; BLAS runs on one).
+  b->job = std::async(std::launch::async, [job, single] {
+    omp_set_num_threads(1);
+    job->made->factor.set_single_precision(single);
+    job->made->factor.factorize(job->matrix);
+  });
+  slot.beside = std::move(b);
+}
+
+void LaggedFactors::retire(FactorSlot& slot) {
+  if (slot.beside) retired_.push_back(std::move(slot.beside));
 }
 
 void LaggedFactors::build_amg(const SparseMatrix& A, const Eigen::VectorXd& positions, FactorSlot& slot) {
@@ -72,6 +135,16 @@ void LaggedFactors::note_iterations(FactorSlot& slot, int iterations) const {
     slot.stale = true;
 }
 
+int LaggedFactors::threads_beside() const {
+  auto running = [](const std::shared_ptr<BesideFactor>& b) {
+    return b && b->job.valid() && b->job.wait_for(std::chrono::seconds(0)) != std::future_status::ready;
+  };
+  int n = 0;
+  for (const auto& sl : slots_) n += running(sl->beside);
+  for (const auto& b : retired_) n += running(b);
+  return n;
+}
+
 FactorInfo LaggedFactors::info() const {
   if (!warp_.slot) return {};
   if (!warp_.slot->amg.ok()) return warp_.slot->factor.info();
@@ -104,6 +177,12 @@ void LaggedFactors::save(LinearSolverState& st) const {
     f.excess = sl->excess;
     f.key = sl->key;
     f.last_used = sl->last_used;
+    if (const BesideFactor* b = sl->beside.get()) {  // its matrix and rotations, to start again
+      f.beside = true;
+      f.beside_left = b->left;
+      f.matrix_values = Eigen::Map<const Eigen::VectorXd>(b->matrix.valuePtr(), b->matrix.nonZeros());
+      f.at_factor = b->made->at_factor;
+    }
     st.factors.push_back(std::move(f));
   }
 }
@@ -113,7 +192,7 @@ void LaggedFactors::check(const LinearSolverState& st, const SparseMatrix& patte
     throw std::invalid_argument("linear solver state: " + std::to_string(st.factors.size()) + " factors, at most " +
                                 std::to_string(kSlots));
   for (const auto& f : st.factors) {
-    if (f.factored && f.matrix_values.size() != pattern.nonZeros())
+    if ((f.factored || f.beside) && f.matrix_values.size() != pattern.nonZeros())
       throw std::invalid_argument("linear solver state: a factor's matrix has " + std::to_string(f.matrix_values.size()) +
                                   " values, the system " + std::to_string(pattern.nonZeros()));
     if (f.factored && s_.preconditioner == PreconditionerKind::amg && f.setup_positions.size() != pattern.rows())
@@ -130,8 +209,7 @@ void LaggedFactors::load(const LinearSolverState& st, const SparseMatrix& patter
   for (const auto& f : st.factors) {
     auto sl = std::make_unique<FactorSlot>();
     if (f.factored) {
-      SparseMatrix A = pattern;
-      Eigen::Map<Eigen::VectorXd>(A.valuePtr(), A.nonZeros()) = f.matrix_values;
+      const SparseMatrix A = with_values(pattern, f.matrix_values);
       if (s_.preconditioner == PreconditionerKind::amg) {
         build_amg(A, f.setup_positions, *sl);  // (sizes checked by check(), before anything changed)
       } else {
@@ -146,6 +224,7 @@ void LaggedFactors::load(const LinearSolverState& st, const SparseMatrix& patter
     sl->excess = f.excess;
     sl->key = f.key;
     sl->last_used = f.last_used;
+    if (f.beside) start_beside(with_values(pattern, f.matrix_values), *sl, f.at_factor, f.beside_left);
     slots_.push_back(std::move(sl));
   }
 }

@@ -5,10 +5,21 @@
 #include "core/linear_solver.hpp"
 #include "core/solvers/warp_preconditioner.hpp"
 
+#include <future>
 #include <memory>
 #include <vector>
 
 namespace fiberfem::core::detail {
+
+/// A slot's first factor made on a thread beside the steps (FirstFactorisation::beside):
+/// a slot of its own, filled by `job` from a copy of the matrix, that replaces the slot
+/// which started it once the solves in between have run `left` more fallback iterations.
+struct BesideFactor {
+  std::unique_ptr<FactorSlot> made = std::make_unique<FactorSlot>();
+  SparseMatrix matrix;     // what is factorised (kept for checkpoints)
+  double left = 0;         // fallback iterations before it takes over
+  std::future<void> job;   // declared last: destroyed, so waited for, first
+};
 
 /// The factor slots of a PCG solver with the cholesky or amg preconditioner, and the warp
 /// state its preconditioner reads (WarpCholeskyPreconditioner::set_state(&warp())).
@@ -24,10 +35,24 @@ class LaggedFactors {
   void set_key(double key) { key_ = key; }
   /// Every factor is refreshed at its next use.
   void invalidate() {
-    for (auto& sl : slots_) sl->stale = true;
+    for (auto& sl : slots_) {
+      sl->stale = true;
+      retire(*sl);  // a factor of the old matrices: the next solve starts another
+    }
   }
-  /// The slot of the current family (least recently used one replaced), marked used.
-  FactorSlot& select_slot();
+  /// The slot of the current family (least recently used one replaced), marked used. A
+  /// factor made beside the steps whose turn has come takes the slot's place here (waited
+  /// for if not done; counted in `st`).
+  FactorSlot& select_slot(SolveStats& st);
+  /// Whether the first factor of `slot` (which has none) is to be made beside the steps.
+  bool factor_beside(const SparseMatrix& A, const FactorSlot& slot) const;
+  /// Starts factorising a copy of A (its CSR values current) beside the steps for `slot`.
+  void start_beside(const SparseMatrix& A, FactorSlot& slot) { start_beside(A, slot, warp_.current, beside_iterations(A)); }
+  /// Counts a fallback solve's iterations against the slot's factor made beside; a failed
+  /// one (`now`) makes it take over at the next select_slot.
+  static void note_fallback(FactorSlot& slot, int iterations, bool now) {
+    slot.beside->left = now ? 0.0 : slot.beside->left - iterations;
+  }
   /// Factorises A into `slot` (an amg setup with PreconditionerKind::amg), counted in
   /// `st`; `sync` (when given) is the system whose CSR values must be synced first.
   void refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats& st, SparseSystem* sync);
@@ -35,6 +60,8 @@ class LaggedFactors {
   static bool ok(const FactorSlot& slot) { return slot.amg.ok() || slot.factor.ok(); }
   /// Counts a solve's iterations against the slot's refresh budget (marks it stale).
   void note_iterations(FactorSlot& slot, int iterations) const;
+  /// Factorisations running beside the steps now (one thread each).
+  int threads_beside() const;
   /// The factor of the slot last used (FactorInfo).
   FactorInfo info() const;
   /// The slots (and their key and clock) into / from LinearSolverState.
@@ -49,6 +76,11 @@ class LaggedFactors {
   // forth. At most kSlots factors (least recently used replaced).
   static constexpr size_t kSlots = 2;
   void build_amg(const SparseMatrix& A, const Eigen::VectorXd& positions, FactorSlot& slot);
+  void start_beside(const SparseMatrix& A, FactorSlot& slot, const std::vector<Mat3>& at, double left);
+  static double beside_iterations(const SparseMatrix& A);
+  /// A factor made beside the steps that is no longer wanted keeps its thread until done.
+  void retire(FactorSlot& slot);
+  void adopt_beside(std::unique_ptr<FactorSlot>& sl, SolveStats& st);
 
   SolverSettings s_;
   WarpState warp_;
@@ -56,6 +88,7 @@ class LaggedFactors {
   std::vector<std::unique_ptr<FactorSlot>> slots_;
   double key_ = 0;
   long clock_ = 0;
+  std::vector<std::shared_ptr<BesideFactor>> retired_;  // finishing; dropped when done
 };
 
 }  // namespace fiberfem::core::detail

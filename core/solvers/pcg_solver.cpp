@@ -45,14 +45,39 @@ SolveStats PcgSolver::run(Preconditioner& pre, const SparseMatrix& A, const Eige
 }
 
 // With a lagged factor: the slot of this matrix family, refactorised when stale; a solve
-// that fails with an old factor refactorises and starts again from the same guess.
+// that fails with an old factor refactorises and starts again from the same guess. A
+// slot's first factor may be made beside the steps, which solve with block Jacobi until
+// it takes over (FirstFactorisation::beside).
 SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                                    const Eigen::VectorXd* Ax0) {
   if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_pre_, A, b, x, Ax0);
   SolveStats st;
+  SparseSystem* sync = use_blocks_ ? system_ : nullptr;
+  FactorSlot* slot = &lagged_.select_slot(st);
+  if (lagged_.factor_beside(A, *slot)) {
+    if (sync) sync->sync_matrix();  // the copy to factorise, and block Jacobi, read the CSR values
+    lagged_.start_beside(A, *slot);
+  }
+  int fallback = 0;  // iterations of block Jacobi that fell short
+  if (slot->beside) {
+    if (sync) sync->sync_matrix();
+    first_guess_ = x;
+    const SolveStats cg = run(jacobi_pre_, A, b, x, Ax0);
+    LaggedFactors::note_fallback(*slot, cg.iterations, !cg.ok);
+    if (cg.ok) return cg;
+    x = first_guess_;  // the factor takes over now, from the same guess
+    fallback = cg.iterations;
+    slot = &lagged_.select_slot(st);
+  }
+  SolveStats cg = solve_lagged(*slot, A, b, x, Ax0, st);
+  cg.iterations += fallback;
+  return cg;
+}
+
+SolveStats PcgSolver::solve_lagged(FactorSlot& slot, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                   const Eigen::VectorXd* Ax0, SolveStats& st) {
   WarpState& warp = lagged_.warp();
   SparseSystem* sync = use_blocks_ ? system_ : nullptr;
-  FactorSlot& slot = lagged_.select_slot();
   warp.slot = &slot;
   if (slot.stale || !LaggedFactors::ok(slot) || slot.rows != A.rows()) lagged_.refactor(A, slot, st, sync);
   if (!LaggedFactors::ok(slot)) return failed(st);

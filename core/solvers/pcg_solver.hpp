@@ -20,6 +20,7 @@ class PcgSolver final : public LinearSolver {
   SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
   std::string name() const override { return std::string("pcg/") + to_string(s_.preconditioner); }
   FactorInfo factor_info() const override { return lagged_.info(); }
+  int threads_beside() const override { return lagged_.threads_beside(); }
   void set_blocks(std::vector<int> starts) override {
     lagged_.warp().starts = starts;
     jacobi_pre_.set_blocks(std::move(starts));
@@ -39,6 +40,8 @@ class PcgSolver final : public LinearSolver {
  private:
   SolveStats solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                           const Eigen::VectorXd* Ax0);
+  SolveStats solve_lagged(FactorSlot& slot, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                          const Eigen::VectorXd* Ax0, SolveStats& st);
   template <class Preconditioner>
   SolveStats run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                  const Eigen::VectorXd* Ax0);

@@ -8,9 +8,12 @@
 
 #include <Eigen/Core>
 
+#include <memory>
 #include <vector>
 
 namespace fiberfem::core::detail {
+
+struct BesideFactor;  // lagged_factors.hpp
 
 /// One lagged factor: the factorisation of an earlier matrix and the node-block rotations
 /// it was made at.
@@ -26,6 +29,8 @@ struct FactorSlot {
   double excess = 0;       // iterations beyond the baseline summed over the later solves
   double key = 0;          // which matrix family (the step size h that built it)
   long last_used = 0;
+  /// The slot's first factor while it is made beside the steps (no factor yet).
+  std::shared_ptr<BesideFactor> beside;
 };
 
 /// What the warp preconditioner shares with its solver: the slot in use, the node blocks,

@@ -100,6 +100,7 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
                            {"warm_start", s.solver.warm_start},
                            {"rotation", s.rotation == core::RotationMethod::polar ? "polar" : "svd"},
                            {"corotation", s.corotation},
+                           {"first_factorisation", core::to_string(s.solver.first_factorisation)},
                            {"max_substep_halvings", s.max_substep_halvings},
                            {"max_energy_gain", std::isfinite(s.max_energy_gain) ? json(s.max_energy_gain) : json("inf")},
                            {"threads", s.threads}};
@@ -354,7 +355,8 @@ void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& pa
       b.add("solver.factor" + std::to_string(k) + ".setup_positions", f.setup_positions.data(),
             static_cast<size_t>(f.setup_positions.size()));
     factors.push_back({{"factored", f.factored}, {"rows", f.rows}, {"stale", f.stale}, {"baseline", f.baseline},
-                       {"excess", f.excess}, {"key", f.key}, {"last_used", f.last_used}});
+                       {"excess", f.excess}, {"key", f.key}, {"last_used", f.last_used},
+                       {"beside", f.beside}, {"beside_left", f.beside_left}});
   }
   const json header = {
       {"time_s", c.time_s},

@@ -57,6 +57,8 @@ core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>
     F.excess = f.value("excess", 0.0);
     F.key = f.at("key");
     F.last_used = f.at("last_used");
+    F.beside = f.value("beside", false);  // absent in checkpoints written before 2026-11-26
+    F.beside_left = f.value("beside_left", 0.0);
     F.matrix_values = vector_of(section(h, data, "solver.factor" + std::to_string(i) + ".matrix_values"));
     F.at_factor = matrices_of(section(h, data, "solver.factor" + std::to_string(i) + ".at_factor"));
     const std::string positions = "solver.factor" + std::to_string(i) + ".setup_positions";

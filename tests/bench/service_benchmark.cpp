@@ -7,6 +7,10 @@
 //   throughput  states of N nodes published back to back with the service's type and
 //            QoS, received per second by another process; compare with ddsperf's output
 //            for the same payload size in the same run (printed by this program);
+//   first-frames  a large scene's start: from spawning `fiberfem serve --fast` to the first
+//            state, to the first stepped state (t > 0), and to steps 10 and 60, with the
+//            first factorisation made beside the steps and waited for, alternated
+//            (--scene FILE, repeatable; --repeat N runs of each);
 //   security the cost of DDS Security (docs/security.md): the heart's frames, the command
 //            latencies and the state throughput with the plain profile (CYCLONEDDS_URI)
 //            and with the secure profiles of --secure-dir (scripts/make_security.sh), in
@@ -99,6 +103,52 @@ FramesResult frames(const std::string& label, std::vector<std::string> serve_arg
   client.send(run, "shutdown", "{}");
   service.wait(30);
   return {static_cast<double>(last - frame0) / wall, static_cast<double>(received) / wall};
+}
+
+// Seconds from spawning the service of `scene` (with solver.first_factorisation=`first`)
+// to its first state, its first stepped state and its states of steps 10 and 60.
+std::array<double, 4> first_frames(const std::string& scene, const std::string& first) {
+  const std::string run = "bench-first-" + std::to_string(getpid());
+  const auto t0 = Clock::now();
+  BackgroundProcess service({FIBERFEM_BIN, "serve", scene, "--run-id", run, "--fast", "--publish-hz", "1000", "--status-hz", "1",
+                             "--set", "solver.first_factorisation=" + first},
+                            "/tmp/bench-first-frames.log", service_env());
+  use_profile(profiles.client);
+  Client client;
+  client.resolve_run(run, 600s);
+  std::array<double, 4> at{};
+  const double marks[4] = {-1.0, 0.5, 9.5, 59.5};  // in steps, against time_s / dt
+  double dt = 0;
+  long last = -1;
+  for (int k = 0; k < 4;) {
+    const auto s = client.next_state(run, 600s, last);
+    if (!s) break;
+    last = static_cast<long>(s->frame);
+    const double since = std::chrono::duration<double>(Clock::now() - t0).count();
+    if (dt == 0 && s->time_s > 0) dt = s->time_s / std::max(1.0, static_cast<double>(s->frame));
+    const double step = dt > 0 ? s->time_s / dt : 0;
+    while (k < 4 && step > marks[k]) at[static_cast<size_t>(k++)] = since;
+  }
+  client.send(run, "shutdown", "{}");
+  service.wait(60);
+  return at;
+}
+
+void first_frames_table(const std::vector<std::string>& scenes, int repeat) {
+  std::printf("| scene | first factorisation | first state s | first step s | step 10 s | step 60 s |\n|---|---|---|---|---|---|\n");
+  for (const std::string& scene : scenes) {
+    std::array<std::vector<double>, 4> by[2];
+    for (int r = 0; r < repeat; ++r)
+      for (int m = 0; m < 2; ++m) {
+        const int mode = (r + m) % 2;  // alternated
+        const auto at = first_frames(scene, mode ? "beside" : "wait");
+        for (size_t k = 0; k < 4; ++k) by[mode][k].push_back(at[k]);
+      }
+    for (int mode = 0; mode < 2; ++mode)
+      std::printf("| %s | %s | %.2f | %.2f | %.2f | %.2f |\n", std::filesystem::path(scene).filename().c_str(), mode ? "beside" : "wait",
+                  percentile(by[mode][0], 0.5), percentile(by[mode][1], 0.5), percentile(by[mode][2], 0.5), percentile(by[mode][3], 0.5));
+    std::fflush(stdout);
+  }
 }
 
 // `scene`: serve's scene arguments (default: the built-in heart).
@@ -281,8 +331,12 @@ int main(int argc, char** argv) {
   double seconds = 10;
   int commands = 200, nodes = 100000;
   std::string secure_dir;
-  app.add_option("what", what, "frames | latency | throughput | all | security")
-      ->check(CLI::IsMember({"frames", "latency", "throughput", "all", "security"}));
+  app.add_option("what", what, "frames | latency | throughput | all | security | first-frames")
+      ->check(CLI::IsMember({"frames", "latency", "throughput", "all", "security", "first-frames"}));
+  std::vector<std::string> scenes;
+  app.add_option("--scene", scenes, "first-frames: a scene file (repeatable)")->check(CLI::ExistingFile);
+  int repeat = 3;
+  app.add_option("--repeat", repeat, "first-frames: runs of each case (medians reported)")->check(CLI::Range(1, 100));
   app.add_option("--secure-dir", secure_dir, "security: the output directory of scripts/make_security.sh")->check(CLI::ExistingDirectory);
   app.add_option("--seconds", seconds, "Measuring time per case, s");
   app.add_option("--commands", commands, "Commands for the latency");
@@ -296,6 +350,10 @@ int main(int argc, char** argv) {
       return 2;
     }
     security(std::filesystem::absolute(secure_dir).string(), seconds, commands, nodes, rounds);
+    return 0;
+  }
+  if (what == "first-frames") {
+    first_frames_table(scenes, repeat);
     return 0;
   }
   if (what == "frames" || what == "all") {

@@ -1,0 +1,157 @@
+// The first Cholesky factor made beside the steps (SolverSettings::first_factorisation
+// beside): the steps solve with block Jacobi meanwhile, the factor takes over at the step
+// the iteration count names (never the clock), so runs on any thread count, runs whose
+// factorisation finishes early or late, and a run restored from a checkpoint taken while
+// the factor was being made all step bit for bit alike; and the result is the waited-for
+// factor's within the solver tolerance.
+
+#include "core/builtin_scenes.hpp"
+#include "core/simulator.hpp"
+#include "io/scene.hpp"
+#include "step_trace.hpp"
+
+#include <gtest/gtest.h>
+
+#include <numeric>
+
+namespace fiberfem {
+namespace {
+
+using Trace = testing::StepTrace;
+
+io::Scene heart(core::FirstFactorisation first, int threads) {
+  io::Scene scene = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/heart.yaml");
+  scene.settings.solver.first_factorisation = first;
+  scene.settings.threads = threads;
+  return scene;
+}
+
+// A box of 49 x 12 x 12 cells (24,000 free DOFs), `length` m long and a quarter of it
+// wide: at 10 m block Jacobi converges in about 100 iterations, at 10 cm not in 500.
+core::Model box(double length) {
+  core::CantileverSpec spec;
+  spec.box.cells = {49, 12, 12};
+  spec.box.size_m = {length, length / 4, length / 4};
+  return core::make_cantilever(spec);
+}
+
+Trace steps(const io::Scene& scene, int n) {
+  core::Simulator sim(scene.model, scene.settings);
+  Trace t;
+  testing::record_steps(sim, n, t);
+  return t;
+}
+
+// The step at which the factor takes over, from the rule: the first solve after the
+// block-Jacobi solves have run min(1000, rows / 32) iterations.
+size_t expected_takeover(const Trace& t, int rows) {
+  const double budget = std::min(static_cast<double>(core::kBesideIterations), rows / 32.0);
+  double run = 0;
+  for (size_t i = 0; i < t.iterations.size(); ++i) {
+    if (run >= budget) return i;
+    run += t.iterations[i];
+  }
+  return t.iterations.size();
+}
+
+TEST(FirstFactorisation, TheFactorMadeBesideTakesOverAtTheStepItsCountNames) {
+  const io::Scene scene = heart(core::FirstFactorisation::beside, 2);
+  const int rows = core::Simulator(scene.model, scene.settings).system().num_free();
+  const Trace beside = steps(scene, 14);
+  const size_t k = expected_takeover(beside, rows);
+  ASSERT_GT(k, 1u) << "the block-Jacobi phase should last more than one step";
+  ASSERT_LT(k, beside.iterations.size()) << "the factor never took over";
+  const Trace wait = steps(heart(core::FirstFactorisation::wait, 2), 14);
+  EXPECT_EQ(wait.factorizations[0], 1);
+  for (size_t i = 0; i < k; ++i) {
+    EXPECT_EQ(beside.factorizations[i], 0) << "step " << i + 1;
+    EXPECT_GT(beside.iterations[i], 3 * wait.iterations[i]) << "step " << i + 1 << ": not block Jacobi?";
+  }
+  EXPECT_EQ(beside.factorizations[k], 1) << "step " << k + 1;
+  EXPECT_LE(beside.iterations[k], 2 * wait.iterations[k] + 2) << "step " << k + 1 << ": the factor did not take over";
+  // Same trajectory within what the tolerance (1e-6 of each solve) lets through.
+  const Eigen::VectorXd& a = beside.x.back();
+  const Eigen::VectorXd& b = wait.x.back();
+  const Eigen::VectorXd& x0 = core::Simulator(scene.model, scene.settings).positions().reshaped();
+  EXPECT_LT((a - b).norm(), 1e-4 * (b - x0).norm());
+}
+
+TEST(FirstFactorisation, RunsBesideAreBitForBitOnAnyThreadCountAndFinishTime) {
+  const Trace two = steps(heart(core::FirstFactorisation::beside, 2), 10);
+  const Trace one = steps(heart(core::FirstFactorisation::beside, 1), 10);
+  const Trace again = steps(heart(core::FirstFactorisation::beside, 2), 10);
+  for (size_t i = 0; i < two.x.size(); ++i) {
+    EXPECT_TRUE(one.x[i] == two.x[i]) << "1 and 2 threads differ at step " << i + 1;
+    EXPECT_TRUE(again.x[i] == two.x[i]) << "two runs on 2 threads differ at step " << i + 1;
+    EXPECT_EQ(one.factorizations[i], two.factorizations[i]) << "step " << i + 1;
+  }
+}
+
+TEST(FirstFactorisation, ACheckpointTakenWhileTheFactorIsMadeResumesBitForBit) {
+  const io::Scene scene = heart(core::FirstFactorisation::beside, 2);
+  core::Simulator whole(scene.model, scene.settings);
+  Trace head, tail;
+  testing::record_steps(whole, 1, head);
+  const core::SimulatorCheckpoint c = whole.checkpoint();
+  bool beside = false;
+  for (const auto& f : c.solver.factors) beside = beside || f.beside;
+  ASSERT_TRUE(beside) << "the checkpoint should hold a factorisation under way";
+  testing::record_steps(whole, 10, tail);
+  ASSERT_GE(std::accumulate(tail.factorizations.begin(), tail.factorizations.end(), 0), 1) << "the factor should take over after the checkpoint";
+
+  core::Simulator resumed(scene.model, scene.settings);
+  resumed.restore(c);
+  Trace again;
+  testing::record_steps(resumed, 10, again);
+  for (size_t i = 0; i < tail.x.size(); ++i) {
+    EXPECT_TRUE(again.x[i] == tail.x[i]) << "positions differ at step " << i + 2;
+    EXPECT_EQ(again.iterations[i], tail.iterations[i]) << "step " << i + 2;
+    EXPECT_EQ(again.factorizations[i], tail.factorizations[i]) << "step " << i + 2;
+  }
+}
+
+// Automatic: beside from kBesideMinRows free DOFs, on any thread count (the same bits on
+// one and two threads); the heart is below the threshold and so waits, like `wait`.
+TEST(FirstFactorisation, AutomaticIsBesideFromTheThresholdOnAnyThreadCount) {
+  const io::Scene scene = heart(core::FirstFactorisation::automatic, 2);
+  ASSERT_LT(core::Simulator(scene.model, scene.settings).system().num_free(), core::kBesideMinRows);
+  const Trace automatic = steps(scene, 3);
+  const Trace wait = steps(heart(core::FirstFactorisation::wait, 2), 3);
+  EXPECT_EQ(automatic.factorizations[0], 1);
+  EXPECT_TRUE(automatic.x.back() == wait.x.back());
+
+  // A soft box of 24,000 free DOFs: beside on one and on two threads, the same bits.
+  core::SimulatorSettings settings;
+  settings.threads = 2;
+  const core::Model soft = box(10.0);
+  core::Simulator two(soft, settings);
+  ASSERT_GE(two.system().num_free(), core::kBesideMinRows);
+  EXPECT_EQ(two.step().solver_factorizations, 0) << "two threads: the factor should be made beside the first step";
+  settings.threads = 1;
+  core::Simulator one(soft, settings);
+  EXPECT_EQ(one.step().solver_factorizations, 0) << "one thread: the factor should be made beside the first step";
+  EXPECT_TRUE(one.positions() == two.positions());
+}
+
+// A stiff small box where block Jacobi cannot reach the tolerance in max_iterations: the
+// factor takes over in that step, from the same guess, and the step is the waited-for one's.
+TEST(FirstFactorisation, WhereBlockJacobiFallsShortTheFactorTakesOverAtOnce) {
+  core::SimulatorSettings settings;
+  settings.threads = 2;
+  settings.solver.first_factorisation = core::FirstFactorisation::beside;
+  settings.solver.max_iterations = 100;
+  const core::Model stiff = box(0.1);
+  core::Simulator beside(stiff, settings);
+  const core::StepReport r = beside.step();
+  EXPECT_EQ(r.solver_factorizations, 1);
+  EXPECT_GT(r.solver_iterations, settings.solver.max_iterations) << "block Jacobi should have fallen short first";
+  settings.solver.first_factorisation = core::FirstFactorisation::wait;
+  core::Simulator wait(stiff, settings);
+  EXPECT_LT(wait.step().solver_iterations, 10);
+  const Eigen::VectorXd a = beside.positions().reshaped(), b = wait.positions().reshaped();
+  const Eigen::VectorXd x0 = stiff.mesh.rest_positions().reshaped();
+  EXPECT_LT((a - b).norm(), 1e-5 * (b - x0).norm());
+}
+
+}  // namespace
+}  // namespace fiberfem
