@@ -38,7 +38,9 @@ CASES = [
     (GROUP + "reference: converged\ngoals: [{error: phase, max: 1}]\n", "goals[0].error"),
     (GROUP + "cost: money\n", "cost: must be one of"),
     (GROUP + "timeout_s: 0\n", "timeout_s: must be > 0"),
-    (GROUP + "set: {solver.dt: {a: 1}}\n", "set.solver.dt: needs a value"),
+    (GROUP + "set: {solver.dt: null}\n", "set.solver.dt: needs a value"),
+    (GROUP + "prepare: [{run: [], creates: m.msh}]\n", "prepare[0].run: must be a non-empty list"),
+    (GROUP + "prepare: [{run: [python, make.py]}]\n", "prepare[0].creates"),
     (GROUP + "sample_s: fast\n", "sample_s: must be a finite number"),
     (GROUP + "groups2: 1\n", "groups2: unknown key"),
 ]

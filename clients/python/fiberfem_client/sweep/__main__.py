@@ -69,7 +69,7 @@ def main(argv=None):
     # The numerical libraries and Dask load only for a sweep that runs (--list is quick).
     from .outdir import OutputDirError
     from .runner import DaskRunner, SequentialRunner
-    from .study import SweepRun
+    from .study import PrepareError, SweepRun, prepare
 
     out = a.out or os.path.join("sweeps", sweep.name)
     try:
@@ -79,6 +79,7 @@ def main(argv=None):
         return 3
     runner = None
     try:
+        prepare(sweep, sys.stderr)
         runner = SequentialRunner() if a.sequential else DaskRunner(a.scheduler, a.workers)
         run.runner = runner
         print(f"fiberfem sweep: {sweep.name}: {len(sweep.configurations())} configurations"
@@ -88,6 +89,9 @@ def main(argv=None):
         for line in run.finish(df):
             print(line, flush=True)
         return 0
+    except PrepareError as e:
+        print(f"fiberfem sweep: {e}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("fiberfem sweep: interrupted; run it again to resume (finished rows are kept)", file=sys.stderr)
         return 130

@@ -36,14 +36,14 @@ _Loader.add_implicit_resolver(
 )
 
 TOP_KEYS = {"sweep", "scene", "set", "groups", "reference", "errors", "cost", "goals", "sample_s",
-            "timeout_s", "keep_archives"}
+            "timeout_s", "keep_archives", "prepare"}
 GROUP_KEYS = {"name", "vary", "set", "combine", "sample"}
 REFERENCE_KEYS = {"converged", "finest", "group", "set"}
 # Which value of a swept key is the finest when `reference: {converged: true}` and the file
 # does not say (`reference.finest`): smaller steps and tolerances, more cells.
 DEFAULT_FINEST = {"solver.dt": "min", "solver.tolerance": "min", "mesh.cells": "max", "mesh.refine": "max",
                   "mesh.resolution": "max", "solver.max_iterations": "max"}
-FINEST_CHOICES = ("min", "max", "last", "base")
+FINEST_CHOICES = ("min", "max", "base")
 RANDOM_KINDS = ("uniform", "loguniform", "choice")
 
 
@@ -70,6 +70,7 @@ class Sweep:
     sample_s: float = 1.0 / 30.0
     timeout_s: float = 3600.0
     keep_archives: bool = False
+    prepare: list = field(default_factory=list)  # [(argv, creates)], paths from the file's folder
 
     def configurations(self) -> list:
         out = []
@@ -88,6 +89,8 @@ def format_value(v) -> str:
         return repr(v)
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(format_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {format_value(x)}" for k, x in v.items()) + "}"
     return str(v)
 
 
@@ -117,8 +120,8 @@ def _scene_keys(node, where) -> dict:
     for k, v in node.items():
         if not isinstance(k, str) or not re.fullmatch(r"[A-Za-z_][\w\[\]\.]*", k):
             _fail(f"{where}.{k}", "is not a scene key path (e.g. solver.dt, regions[0].material.E_L)")
-        if v is None or isinstance(v, dict):
-            _fail(f"{where}.{k}", "needs a value (a number, string, boolean or list)")
+        if v is None:
+            _fail(f"{where}.{k}", "needs a value (a number, string, boolean, list or mapping)")
     return dict(node)
 
 
@@ -233,13 +236,14 @@ def _groups(node, where="groups") -> list:
 
 
 def _finest(values, how):
-    if how == "last":
-        return values[-1]
+    if isinstance(values[0], dict):
+        raise SweepFileError("mappings cannot be ordered: say base and give the reference's value in reference.set")
     measure = (lambda v: math.prod(v)) if isinstance(values[0], list) else (lambda v: v)
     try:
         return (min if how == "min" else max)(values, key=measure)
     except TypeError:
-        raise SweepFileError(f"values {values!r} cannot be ordered: say 'last' or 'base'") from None
+        raise SweepFileError(f"values {values!r} cannot be ordered: say base and give the reference's value "
+                             "in reference.set") from None
 
 
 def _reference(node, sweep: Sweep, where="reference") -> Configuration:
@@ -279,14 +283,14 @@ def _reference(node, sweep: Sweep, where="reference") -> Configuration:
     for k, vals in axes.items():
         how = finest.get(k, DEFAULT_FINEST.get(k))
         if how is None:
-            _fail(f"{where}.finest.{k}", "say which value of this swept key is the finest: min, max, last "
-                                         "(the last listed) or base (the scene's own value)")
+            _fail(f"{where}.finest.{k}", "say which value of this swept key is the finest: min, max, or base "
+                                         "(the scene's own value, or the one reference.set gives)")
         if how != "base":
             try:
                 values[k] = _finest(vals, how)
             except SweepFileError as e:
                 _fail(f"{where}.finest.{k}", str(e))
-    return Configuration("reference", "reference", values, overrides_of(sweep.base_set, values, extra))
+    return Configuration("reference", "reference", {**values, **extra}, overrides_of(sweep.base_set, values, extra))
 
 
 def _goals(node, errors, where="goals") -> list:
@@ -299,6 +303,22 @@ def _goals(node, errors, where="goals") -> list:
         if g.get("error") not in errors:
             _fail(f"{w}.error", f"must be one of the sweep's errors ({', '.join(errors)}), not {g.get('error')!r}")
         out.append((g["error"], _number(g.get("max"), f"{w}.max", positive=True)))
+    return out
+
+
+def _prepare(node, where="prepare") -> list:
+    if not isinstance(node, list):
+        _fail(where, "must be a list of {run: [PROGRAM, ARG...], creates: FILE}")
+    out = []
+    for i, step in enumerate(node):
+        w = f"{where}[{i}]"
+        _mapping(step, w, {"run", "creates"})
+        argv, creates = step.get("run"), step.get("creates")
+        if not isinstance(argv, list) or not argv or not all(isinstance(a, (str, int, float)) for a in argv):
+            _fail(f"{w}.run", "must be a non-empty list: the program and its arguments")
+        if not isinstance(creates, str) or not creates:
+            _fail(f"{w}.creates", "must name the file the step makes (the step is skipped when it exists)")
+        out.append(([str(a) for a in argv], creates))
     return out
 
 
@@ -349,6 +369,7 @@ def _parse(doc, path) -> Sweep:
         sw.sample_s = _number(doc["sample_s"], "sample_s", positive=True)
     if "timeout_s" in doc:
         sw.timeout_s = _number(doc["timeout_s"], "timeout_s", positive=True)
+    sw.prepare = _prepare(doc.get("prepare", []))
     if "keep_archives" in doc:
         if not isinstance(doc["keep_archives"], bool):
             _fail("keep_archives", f"must be true or false, not {doc['keep_archives']!r}")

@@ -5,6 +5,8 @@ fronts, the plots and the cheapest configuration per goal."""
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 
 from .columns import ERROR_COLUMN
 from .measures import error_measures
@@ -22,6 +24,25 @@ def _job(sweep, config, binary, od, done_keys, reference, archive, keep):
             "group": config.group, "values": config.values, "run_dir": od.runs, "archive": archive,
             "reference": reference, "errors": sweep.errors, "sample_s": sweep.sample_s,
             "timeout_s": sweep.timeout_s, "keep_archive": keep, "done_keys": done_keys}
+
+
+class PrepareError(RuntimeError):
+    """A `prepare` step of the sweep file failed."""
+
+
+def prepare(sweep, stream):
+    """Runs each `prepare` step whose file does not exist yet, in the sweep file's folder
+    (`python` as the program is this interpreter)."""
+    here = os.path.dirname(sweep.path)
+    for i, (argv, creates) in enumerate(sweep.prepare):
+        if os.path.exists(os.path.join(here, creates)):
+            continue
+        argv = [sys.executable if j == 0 and a == "python" else a for j, a in enumerate(argv)]
+        print(f"fiberfem sweep: prepare[{i}]: {' '.join(argv)}", file=stream, flush=True)
+        p = subprocess.run(argv, cwd=here, capture_output=True, text=True)
+        if p.returncode != 0 or not os.path.exists(os.path.join(here, creates)):
+            raise PrepareError(f"{sweep.path}: prepare[{i}] ({' '.join(argv)}) failed with exit {p.returncode} "
+                               f"or did not make {creates}: {(p.stderr or p.stdout).strip()[-600:]}")
 
 
 class SweepRun:

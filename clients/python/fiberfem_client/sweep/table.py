@@ -4,6 +4,7 @@ measure against the cost, the cheapest configuration meeting each goal, and the 
 
 from __future__ import annotations
 
+import json
 import math
 import os
 
@@ -54,6 +55,60 @@ def cheapest(df: pd.DataFrame, error_column: str, limit: float, cost: str):
 def write_table(df: pd.DataFrame, out_dir: str):
     df.to_parquet(os.path.join(out_dir, "results.parquet"), index=False)
     df.to_csv(os.path.join(out_dir, "results.csv"), index=False)
+    with open(os.path.join(out_dir, "results.md"), "w", encoding="utf-8") as f:
+        f.write(markdown(df))
+
+
+# The results page's columns: (table column, heading, significant digits or None for text).
+MARKDOWN_COLUMNS = [("elements", "tets", None), ("l2_err", "L2 err", 3), ("probe_err", "probe err", 3),
+                    ("probe_err_m", "probe err mm", 3), ("final_err", "final err", 3),
+                    ("volume_err", "volume err", 3), ("ef_err_pp", "EF err pp", 3),
+                    ("engine_s_per_sim_s", "engine s / sim s", 3), ("wall_s_per_sim_s", "wall s / sim s", 3),
+                    ("steps_per_s", "steps/s", 4), ("recovered_steps", "recovered", None),
+                    ("peak_rss_mb", "peak MB", 3)]
+
+
+def markdown(df: pd.DataFrame) -> str:
+    """The table as Markdown: name, group, the swept settings, status, the measures present,
+    P for a row on the L2 front (else the first front marked)."""
+    sets = [c for c in df.columns if c.startswith("set:")]
+    cols = [c for c in MARKDOWN_COLUMNS if c[0] in df and df[c[0]].notna().any()]
+    fronts = [c for c in df.columns if c.startswith("pareto_") and df[c].any()]
+    front = "pareto_l2_err" if "pareto_l2_err" in fronts else (fronts[0] if fronts else None)
+    head = ["configuration", "group", *[c[4:] for c in sets], "status", *[h for _, h, _ in cols], "front"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * 2 + "---|" * len(sets) + "---|" + "---:|" * len(cols) + "---|"]
+    for _, r in df.iterrows():
+        cells = [str(r["name"]), str(r["group"]), *[_text(r.get(c)) for c in sets],
+                 str(r["status"]) + (f": {r['reason']}" if r["status"] not in ("completed",) and r.get("reason") else "")]
+        for c, _, digits in cols:
+            v = r.get(c)
+            if c == "probe_err_m" and _finite(v):
+                v = v * 1e3
+            cells.append(_number(v, digits))
+        cells.append("P" if front and bool(r.get(front)) else "")
+        lines.append("| " + " | ".join(x.replace("|", "/") for x in cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _finite(v) -> bool:
+    try:
+        return v is not None and math.isfinite(float(v))
+    except (TypeError, ValueError):
+        return False
+
+
+def _number(v, digits) -> str:
+    if not _finite(v):
+        return ""
+    if digits is None:
+        return str(int(v)) if float(v).is_integer() else str(v)
+    return f"{float(v):.{digits}g}"
+
+
+def _text(v) -> str:
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    return str(v).replace('"', "")
 
 
 def recommendations(df: pd.DataFrame, goals: list, cost: str) -> list:
@@ -72,7 +127,5 @@ def recommendations(df: pd.DataFrame, goals: list, cost: str) -> list:
 
 
 def describe(row) -> str:
-    import json
-
     sets = json.loads(row["overrides"]) if isinstance(row.get("overrides"), str) else []
     return " ".join(f"--set {s}" for s in sets) or "the scene as it is"
