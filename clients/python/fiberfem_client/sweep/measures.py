@@ -118,7 +118,38 @@ def error_measures(run_archive, run_report, ref_archive, ref_report, sample_s, w
         ef, efr = _last_beat_ef(run_report), _last_beat_ef(ref_report)
         out["ef_err_pp"] = 100.0 * (ef - efr) if ef is not None and efr is not None else math.nan
         out["ef_err_abs_pp"] = abs(out["ef_err_pp"])
+    if "phase" in wanted:
+        out["phase_err_ms"] = 1e3 * (_event_time(run, times, run_report) - _event_time(ref, times, ref_report))
+        out["phase_err_abs_ms"] = abs(out["phase_err_ms"])
     return out
+
+
+def _peak_time(times, s, k) -> float:
+    """Time of the extremum at sample k, refined by the parabola through k-1, k, k+1."""
+    if k <= 0 or k >= len(s) - 1:
+        return float(times[k])
+    den = s[k - 1] - 2 * s[k] + s[k + 1]
+    shift = 0.5 * (s[k - 1] - s[k + 1]) / den if den != 0 else 0.0
+    return float(times[k] + shift * (times[1] - times[0]))
+
+
+def _event_time(trace: Trace, times, report) -> float:
+    """With a cavity: the time of its least volume in the last beat (the report's
+    contraction period); else the probe's first peak (the first local maximum of |u| above
+    half its largest value). NaN when the scene has neither."""
+    period = ((report or {}).get("contraction") or {}).get("period_s")
+    if trace.volumes is not None and trace.volumes.shape[1] and period:
+        v = trace.at(trace.volumes[:, 0], times)
+        window = np.flatnonzero(times >= times[-1] - period - 1e-9)
+        k = int(window[np.argmin(v[window])])
+        return _peak_time(times, v, k)
+    if trace.probes is None or not trace.probes.shape[1]:
+        return math.nan
+    s = np.linalg.norm(trace.at(trace.probes[:, 0], times), axis=1)
+    for k in range(1, len(s) - 1):
+        if s[k] >= 0.5 * s.max() and s[k] >= s[k - 1] and s[k] > s[k + 1]:
+            return _peak_time(times, s, k)
+    return math.nan
 
 
 def _probe_errors(run: Trace, ref: Trace, times) -> dict:

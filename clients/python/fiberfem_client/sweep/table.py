@@ -62,7 +62,7 @@ def write_table(df: pd.DataFrame, out_dir: str):
 # The results page's columns: (table column, heading, significant digits or None for text).
 MARKDOWN_COLUMNS = [("elements", "tets", None), ("l2_err", "L2 err", 3), ("probe_err", "probe err", 3),
                     ("probe_err_m", "probe err mm", 3), ("final_err", "final err", 3),
-                    ("volume_err", "volume err", 3), ("ef_err_pp", "EF err pp", 3),
+                    ("volume_err", "volume err", 3), ("ef_err_pp", "EF err pp", 3), ("phase_err_ms", "phase ms", 3),
                     ("engine_s_per_sim_s", "engine s / sim s", 3), ("wall_s_per_sim_s", "wall s / sim s", 3),
                     ("steps_per_s", "steps/s", 4), ("recovered_steps", "recovered", None),
                     ("peak_rss_mb", "peak MB", 3)]
