@@ -92,6 +92,10 @@ def main(argv=None):
     except PrepareError as e:
         print(f"fiberfem sweep: {e}", file=sys.stderr)
         return 1
+    except (OSError, TimeoutError) as e:  # e.g. no scheduler at --scheduler, or no workers joined
+        where = f"the Dask scheduler at {a.scheduler}" if a.scheduler else "the local Dask cluster"
+        print(f"fiberfem sweep: {where}: {type(e).__name__}: {e}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("fiberfem sweep: interrupted; run it again to resume (finished rows are kept)", file=sys.stderr)
         return 130

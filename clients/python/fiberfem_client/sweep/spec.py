@@ -293,13 +293,17 @@ def _reference(node, sweep: Sweep, where="reference") -> Configuration:
     return Configuration("reference", "reference", {**values, **extra}, overrides_of(sweep.base_set, values, extra))
 
 
-def _goals(node, errors, where="goals") -> list:
+def _entries(node, where, form, keys):
+    """(where[i], entry) of a list of mappings with these keys."""
     if not isinstance(node, list):
-        _fail(where, "must be a list of {error: NAME, max: VALUE}")
+        _fail(where, f"must be a list of {form}")
+    for i, entry in enumerate(node):
+        yield f"{where}[{i}]", _mapping(entry, f"{where}[{i}]", keys)
+
+
+def _goals(node, errors, where="goals") -> list:
     out = []
-    for i, g in enumerate(node):
-        w = f"{where}[{i}]"
-        _mapping(g, w, {"error", "max"})
+    for w, g in _entries(node, where, "{error: NAME, max: VALUE}", {"error", "max"}):
         if g.get("error") not in errors:
             _fail(f"{w}.error", f"must be one of the sweep's errors ({', '.join(errors)}), not {g.get('error')!r}")
         out.append((g["error"], _number(g.get("max"), f"{w}.max", positive=True)))
@@ -307,12 +311,8 @@ def _goals(node, errors, where="goals") -> list:
 
 
 def _prepare(node, where="prepare") -> list:
-    if not isinstance(node, list):
-        _fail(where, "must be a list of {run: [PROGRAM, ARG...], creates: FILE}")
     out = []
-    for i, step in enumerate(node):
-        w = f"{where}[{i}]"
-        _mapping(step, w, {"run", "creates"})
+    for w, step in _entries(node, where, "{run: [PROGRAM, ARG...], creates: FILE}", {"run", "creates"}):
         argv, creates = step.get("run"), step.get("creates")
         if not isinstance(argv, list) or not argv or not all(isinstance(a, (str, int, float)) for a in argv):
             _fail(f"{w}.run", "must be a non-empty list: the program and its arguments")

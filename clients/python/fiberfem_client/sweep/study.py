@@ -38,6 +38,7 @@ def prepare(sweep, stream):
         if os.path.exists(os.path.join(here, creates)):
             continue
         argv = [sys.executable if j == 0 and a == "python" else a for j, a in enumerate(argv)]
+        os.makedirs(os.path.dirname(os.path.join(here, creates)), exist_ok=True)
         print(f"fiberfem sweep: prepare[{i}]: {' '.join(argv)}", file=stream, flush=True)
         p = subprocess.run(argv, cwd=here, capture_output=True, text=True)
         if p.returncode != 0 or not os.path.exists(os.path.join(here, creates)):
