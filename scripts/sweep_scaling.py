@@ -65,6 +65,10 @@ def overhead(out, repeats):
                 shutil.rmtree(d, ignore_errors=True)
                 ts.append(timed([BIN, "sweep", path, "--out", d, *extra]))
             res[(mode, n)] = statistics.median(ts)
+            # Outside the tasks: the wall time less the tasks' own (attempt_s, last repeat).
+            tasks = pd.read_parquet(os.path.join(d, "results.parquet"))["attempt_s"].sum()
+            res[(mode, n, "outside")] = ts[-1] - tasks
+            res[(mode, n, "task")] = tasks / n
     slope = {m: (res[(m, 80)] - res[(m, 20)]) / 60 for m in ("sequential", "dask")}
     icept = {m: res[(m, 20)] - 20 * slope[m] for m in ("sequential", "dask")}
     return res, slope, icept
@@ -85,19 +89,27 @@ def estimate_64(out, per_task_s, startup_s, cores=64) -> list:
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4])
+    ap.add_argument("--workers", type=int, nargs="*", default=[1, 2, 4], help="worker counts of the study runs; none: the overhead only")
     ap.add_argument("--repeats", type=int, default=1, help="repeats of the overhead sweeps (median)")
     ap.add_argument("--out", default=os.path.join(ROOT, "build/scaling"))
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     res, slope, icept = overhead(a.out, a.repeats)
-    print("| one-step runs | sequential, s | local cluster of 1 worker, s |\n|---:|---:|---:|")
+    print("| one-step runs | sequential, s | of which outside the tasks, s | task, ms | local cluster of 1 worker, s "
+          "| of which outside the tasks, s | task, ms |\n|---:|---:|---:|---:|---:|---:|---:|")
     for n in (20, 80):
-        print(f"| {n} | {res[('sequential', n)]:.2f} | {res[('dask', n)]:.2f} |")
+        print(f"| {n} | " + " | ".join(f"{res[(m, n)]:.2f} | {res[(m, n, 'outside')]:.2f} | "
+                                       f"{res[(m, n, 'task')] * 1e3:.0f}" for m in ("sequential", "dask")) + " |")
+    for m in ("sequential", "dask"):
+        per = (res[(m, 80, "outside")] - res[(m, 20, "outside")]) / 60
+        print(f"\n{m}: outside the tasks {per * 1e3:.0f} ms per task more, "
+              f"{res[(m, 20, 'outside')] - 20 * per:.2f} s per sweep")
     per_task = slope["dask"] - slope["sequential"]
     startup = icept["dask"] - icept["sequential"]
     print(f"\nper task: sequential {slope['sequential'] * 1e3:.0f} ms, Dask {slope['dask'] * 1e3:.0f} ms: "
           f"overhead {per_task * 1e3:.0f} ms per task; cluster start and stop {startup:.1f} s\n")
+    if not a.workers:
+        return
     walls = {w: study_times(w, a.out) for w in a.workers}
     print("| sweep | " + " | ".join(f"{w} worker{'s' if w > 1 else ''}, s" for w in a.workers) + " |")
     print("|---|" + "---:|" * len(a.workers))

@@ -35,7 +35,7 @@ CASES = [
     (GROUP + "reference: {group: nope}\n", "reference.group: no group named 'nope'"),
     (GROUP + "reference: {group: a}\n", "reference.group: group 'a' has 2 configurations"),
     (GROUP + "reference: converged\ngoals: [{error: l2, max: -1}]\n", "goals[0].max: must be > 0"),
-    (GROUP + "reference: converged\ngoals: [{error: phase, max: 1}]\n", "goals[0].error"),
+    (GROUP + "reference: converged\ngoals: [{error: pressure, max: 1}]\n", "goals[0].error"),
     (GROUP + "cost: money\n", "cost: must be one of"),
     (GROUP + "timeout_s: 0\n", "timeout_s: must be > 0"),
     (GROUP + "set: {solver.dt: null}\n", "set.solver.dt: needs a value"),
@@ -70,6 +70,22 @@ def main():
             t.check(p.returncode == 2 and expected in p.stderr, f"'{expected}': {p.returncode} {p.stderr.strip()}")
         p = run(os.path.join(d, "missing.yaml"))
         t.check(p.returncode == 2 and "cannot read" in p.stderr, f"a missing file: {p.stderr.strip()}")
+    # Seeded samples: the same seed draws the same configurations, another seed others, and
+    # each value lies in its range (log-uniform between its ends).
+    with tempfile.TemporaryDirectory() as d:
+        lists = {}
+        for seed in (1, 1, 2):
+            path = os.path.join(d, f"sample{seed}.yaml")
+            with open(path, "w") as f:
+                f.write(HEAD.format(scene=os.path.abspath(scene)) + "groups:\n  - name: s\n"
+                        f"    sample: {{count: 5, seed: {seed}}}\n"
+                        "    vary: {solver.dt: {loguniform: [0.001, 0.1]}, solver.rotation: [svd, polar]}\n")
+            p = run(path)
+            lists.setdefault(seed, []).append(p.stdout)
+            dts = [float(l.split("solver.dt=")[1].split()[0]) for l in p.stdout.splitlines()]
+            t.check(p.returncode == 0 and len(dts) == 5 and all(0.001 <= x <= 0.1 for x in dts),
+                    f"seed {seed}: 5 draws in range: {p.stdout}")
+        t.check(lists[1][0] == lists[1][1] and lists[1][0] != lists[2][0], "seeded draws repeat, other seeds differ")
     good = run(TINY)
     t.check(good.returncode == 0 and good.stdout.count("\n") == 8 and "reference: " in good.stdout,
             f"the tiny sweep lists its reference and 7 configurations: {good.stdout}")
