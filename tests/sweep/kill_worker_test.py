@@ -8,7 +8,7 @@ import os
 import signal
 import sys
 
-from sweep_support import HERE, Tally, cleanup, fiberfem_runs_under, scratch, start_sweep, table, wait_for
+from sweep_support import HERE, Tally, cleanup, fiberfem_runs_under, kill_group, scratch, start_sweep, table, wait_for
 
 SLOW = os.path.join(HERE, "slow.yaml")
 
@@ -21,7 +21,6 @@ def main():
         runs = wait_for(lambda: fiberfem_runs_under(out), 120)
         t.check(bool(runs), "a fiberfem run of the sweep appeared")
         if not runs:
-            p.kill()
             return t.finish()
         run_pid, worker_pid = runs[0]
         with open(f"/proc/{run_pid}/cmdline", "rb") as f:
@@ -43,7 +42,7 @@ def main():
         t.check(str(worker_pid) not in pids, f"no row is from the killed worker {worker_pid}: {pids}")
     finally:
         if p.poll() is None:
-            p.kill()
+            kill_group(p)
         cleanup(out)
     return t.finish()
 

@@ -45,7 +45,7 @@ class DaskRunner:
                 self.client.wait_for_workers(workers, timeout=120)
             self.description = f"Dask scheduler {scheduler}, {self.workers()} workers"
         else:
-            n = workers or os.cpu_count() or 1
+            n = workers or len(os.sched_getaffinity(0))  # the cores this process may use
             self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                                         silence_logs=logging.ERROR)
             self.client = Client(self.cluster)
