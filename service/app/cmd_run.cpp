@@ -35,6 +35,7 @@ struct RunArgs {
   int flush_frames = 0, record_every = 0, compression = -1;
   double flush_seconds = -1, checkpoint_every = -1;
   bool velocities = false;
+  bool scene_hash_only = false;
   double dt = 0, tolerance = 0;
   int threads = 0;
   std::vector<int> cells;
@@ -77,6 +78,13 @@ int run_command(CLI::App& run, RunArgs& a) {
     o.archive = ar;
     return sc;
   };
+  // `--scene-hash` parses the scene as a run would and prints its hash instead of running:
+  // `fiberfem sweep` keys finished configurations by it without running them again.
+  const auto run_or_hash = [&](io::Scene sc) {
+    if (!a.scene_hash_only) return service::run_batch(with_archive(std::move(sc)), o, std::cout);
+    std::cout << sc.hash_sha256 << "\n";
+    return 0;
+  };
 
   try {
     if (!a.resume.empty()) {
@@ -86,19 +94,19 @@ int run_command(CLI::App& run, RunArgs& a) {
         throw std::invalid_argument("--archive must not be the archive being resumed from (" + a.archive + ")");
       if (a.scene_file.empty()) {
         o.source = "archive:" + o.resume.path;
-        return service::run_batch(with_archive(service::scene_from_archive(o.resume.path, o.overrides)), o, std::cout);
+        return run_or_hash(service::scene_from_archive(o.resume.path, o.overrides));
       }
     }
     if (!a.scene_file.empty()) {
       o.source = a.scene_file;
-      return service::run_batch(with_archive(io::load_scene(a.scene_file, o.overrides)), o, std::cout);
+      return run_or_hash(io::load_scene(a.scene_file, o.overrides));
     }
     if (!service::builtin_scenes().count(a.builtin)) {
       std::cerr << "fiberfem: unknown built-in scene '" << a.builtin << "' (available: cantilever, heart)\n";
       return 2;
     }
     o.source = "builtin:" + a.builtin;
-    return service::run_batch(with_archive(service::load_builtin_scene(a.builtin, o.overrides)), o, std::cout);
+    return run_or_hash(service::load_builtin_scene(a.builtin, o.overrides));
   } catch (const std::exception& e) {
     std::cerr << "fiberfem: " << e.what() << "\n";
     return 1;
@@ -119,6 +127,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
   run->add_option("--steps", o.steps, "Number of steps (instead of --until)")->check(CLI::Range(1, 1000000000));
   run->add_option("--until", o.until_s, "Simulated time, s (default: the scene's solver.until)")->check(CLI::Range(1e-9, 1e9));
   run->add_option("--report", o.report_path, "Write a JSON report here (docs/report-format.md)");
+  run->add_flag("--scene-hash", a->scene_hash_only, "Print the scene's SHA-256 (after every --set) and exit without running");
   run->add_flag("--compare-static", o.compare_static, "After a dynamic run, solve statically and compare the probes");
   // Shorthands for scene keys (each becomes a --set before the explicit ones).
   run->add_option("--dt", a->dt, "Time step, s (solver.dt)")->check(CLI::Range(1e-6, 10.0));

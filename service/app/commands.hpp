@@ -28,4 +28,8 @@ void add_archive_command(CLI::App& app, int& exit_code);
 /// when FIBERFEM_WITH_OSMESA is on (compile definition FIBERFEM_HAVE_RENDER).
 void add_render_command(CLI::App& app, int& exit_code);
 
+/// `fiberfem sweep SWEEP.yaml`: a parameter sweep on Dask, handed over to the Python
+/// client package (cmd_sweep.cpp, docs/sweeps.md).
+void add_sweep_command(CLI::App& app, int& exit_code);
+
 }  // namespace fiberfem::app

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
 #ifdef FIBERFEM_HAVE_RENDER
   fiberfem::app::add_render_command(app, exit_code);
 #endif
+  fiberfem::app::add_sweep_command(app, exit_code);
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }
