@@ -30,7 +30,14 @@ packages=(
   clang libclang-rt-14-dev libomp-14-dev ccache
   # the amg preconditioner (AMGCL, header-only; Debian's contrib component, enabled below)
   libamgcl-dev
+  # fiberfem web's browser tests (docs/web.md): headless Chromium and its WebDriver
+  chromium chromium-driver
 )
+# node and npm bundle the page of fiberfem web (clients/web) at build time; a machine that
+# has them from elsewhere keeps its own (Debian's npm conflicts with other nodejs builds).
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  packages+=(nodejs npm)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
@@ -81,7 +88,7 @@ else
 fi
 
 # Python packages (tests and tools) in a virtual environment beside the build.
-if ! .venv/bin/python -c "import meshio, gmsh, h5py, cyclonedds, fiberfem_client" 2>/dev/null; then
+if ! .venv/bin/python -c "import meshio, gmsh, h5py, cyclonedds, fiberfem_client, aiohttp, selenium" 2>/dev/null; then
   echo "setup: creating .venv with scripts/requirements.txt and the Python client (clients/python)"
   python3 -m venv .venv
   .venv/bin/pip install -q -r scripts/requirements.txt
@@ -90,9 +97,17 @@ else
   echo "setup: .venv ready"
 fi
 
+# three.js and esbuild (clients/web/package-lock.json) for the page of fiberfem web.
+if [[ ! -x clients/web/node_modules/.bin/esbuild || clients/web/package-lock.json -nt clients/web/node_modules ]]; then
+  echo "setup: npm ci in clients/web (three.js, esbuild)"
+  (cd clients/web && npm ci --no-audit --no-fund --loglevel=error && touch node_modules)
+fi
+
 preset="${FIBERFEM_PRESET:-release}"
 if [[ ! -f "build/$preset/build.ninja" ]]; then
   cmake --preset "$preset"
+elif [[ "$preset" != core-only ]] && ! grep -q fiberfem_web_page "build/$preset/build.ninja"; then
+  cmake --preset "$preset"  # configured before node_modules existed: add the page's target
 fi
 # FIBERFEM_BUILD_TARGETS="fiberfem ..." builds only those (the front door needs just the
 # command; the test command builds the rest).

@@ -28,4 +28,7 @@ void add_archive_command(CLI::App& app, int& exit_code);
 /// when FIBERFEM_WITH_OSMESA is on (compile definition FIBERFEM_HAVE_RENDER).
 void add_render_command(CLI::App& app, int& exit_code);
 
+/// `fiberfem web`: execs the browser bridge (cmd_web.cpp; docs/web.md).
+void add_web_command(CLI::App& app, int& exit_code);
+
 }  // namespace fiberfem::app

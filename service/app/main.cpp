@@ -24,6 +24,9 @@ int main(int argc, char** argv) {
 #ifdef FIBERFEM_HAVE_RENDER
   fiberfem::app::add_render_command(app, exit_code);
 #endif
+#ifdef FIBERFEM_HAVE_WEB
+  fiberfem::app::add_web_command(app, exit_code);
+#endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }
