@@ -17,7 +17,7 @@ const panel = new Panel(send);
 // What the tests and scripts/web_measure.py read: frames drawn, bytes, publish-to-paint
 // latency of each drawn frame (ms, the service's source timestamp to the end of render()).
 const stats = { frames: 0, bytes: 0, latencies: [], started: performance.now(), lastFrame: null, topology: null, acks: [], errors: [] };
-window.fiberfem = { stats, panel, view, send, colouring };
+window.fiberfem = { stats, panel, view, send, colouring, ws };
 
 let pending = null;   // the newest frame received, not drawn yet
 let regionNames = [];
