@@ -30,8 +30,9 @@ packages=(
   clang libclang-rt-14-dev libomp-14-dev ccache
   # the amg preconditioner (AMGCL, header-only; Debian's contrib component, enabled below)
   libamgcl-dev
-  # fiberfem web's browser tests (docs/web.md): headless Chromium and its WebDriver
-  chromium chromium-driver
+  # fiberfem web (docs/web.md): headless Chromium and its WebDriver for the browser tests;
+  # Python's headers for the bridge's cyclonedds binding, built against the system library
+  chromium chromium-driver python3-dev
 )
 # node and npm bundle the page of fiberfem web (clients/web) at build time; a machine that
 # has them from elsewhere keeps its own (Debian's npm conflicts with other nodejs builds).
@@ -95,6 +96,24 @@ if ! .venv/bin/python -c "import meshio, gmsh, h5py, cyclonedds, fiberfem_client
   .venv/bin/pip install -q -e clients/python
 else
   echo "setup: .venv ready"
+fi
+
+# .venv-web: the bridge of fiberfem web on the system's Cyclone DDS (docs/web.md): the
+# cyclonedds binding built from its source against cyclonedds-dev (a CYCLONEDDS_HOME of links
+# to the Debian files), so the bridge speaks DDS Security like the service.
+if ! .venv-web/bin/python -c "import cyclonedds, aiohttp, fiberfem_client.web" 2>/dev/null; then
+  echo "setup: creating .venv-web with scripts/requirements-web.txt (cyclonedds built against the system library)"
+  cdds_home="$(mktemp -d)"
+  mkdir -p "$cdds_home/lib" "$cdds_home/bin"
+  ln -s /usr/include "$cdds_home/include"
+  ln -s "$(dpkg -L cyclonedds-dev | grep '/libddsc\.so$' | head -n 1)" "$cdds_home/lib/libddsc.so"
+  ln -s "$(command -v idlc)" "$cdds_home/bin/idlc"
+  python3 -m venv .venv-web
+  CYCLONEDDS_HOME="$cdds_home" .venv-web/bin/pip install -q --no-binary cyclonedds -r scripts/requirements-web.txt
+  .venv-web/bin/pip install -q --no-deps -e clients/python
+  rm -rf "$cdds_home"
+else
+  echo "setup: .venv-web ready"
 fi
 
 # three.js and esbuild (clients/web/package-lock.json) for the page of fiberfem web.

@@ -39,7 +39,7 @@ int exec_bridge(const WebArgs& a) {
   const std::string python = python_path();
   const std::string page = FIBERFEM_WEB_PAGE_DIR;
   if (access(python.c_str(), X_OK) != 0) {
-    std::fprintf(stderr, "fiberfem web: no Python environment at %s (run scripts/setup.sh, which makes the .venv)\n",
+    std::fprintf(stderr, "fiberfem web: no Python environment at %s (run scripts/setup.sh, which makes .venv-web)\n",
                  python.c_str());
     return 3;
   }

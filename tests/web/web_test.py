@@ -247,7 +247,41 @@ def wait_status(rig: Rig, ok, timeout: float = 10):
             return s
 
 
-CASES = {"stream": case_stream, "heart_rate": case_heart_rate, "force": case_force, "replay": case_replay,
+def case_secure(rig: Rig, out_dir: str):
+    """Secure mode (docs/security.md): a bridge with the observer identity shows the run with
+    its controls disabled and refuses commands; one with the operator identity steers."""
+    sec = os.path.join(rig.dir, "sec")
+    subprocess.run([os.path.join(rig.source_dir, "scripts", "make_security.sh"), sec], check=True, stdout=subprocess.DEVNULL)
+    profile = {who: dict(rig.env, CYCLONEDDS_URI=f"file://{sec}/profiles/{who}.xml") for who in ("service", "observer", "operator")}
+    rig.start([rig.bin, "serve", "--builtin", "heart", "--run-id", rig.run_id, "--threads", "1"], "serve", profile["service"])
+
+    def observed_state():  # the run's state as fiberfem ctl with the observer identity reads it
+        r = subprocess.run([rig.bin, "ctl", "--run", rig.run_id, "--timeout", "20", "status", "--table", "--count", "1"],
+                           env=profile["observer"], capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, r.stdout + r.stderr
+        return r.stdout
+
+    assert "running" in observed_state()
+    rig.bridge(env=profile["observer"])
+    rig.browser()
+    rig.wait_js("window.fiberfem.stats.frames >= 2", what="frames through the secure observer")
+    why = rig.wait_js("document.getElementById('why-not').textContent", what="the reason controls are off")
+    assert "observer" in why, why
+    assert all(rig.js("return [...document.querySelectorAll('.controls button, .controls input')].map(e => e.disabled);"))
+    rig.js("window.fiberfem.panel.command('pause');")
+    e = rig.wait_js("window.fiberfem.stats.errors[0]", what="the refusal")
+    assert e["message"].startswith("not permitted"), e
+    assert "running" in observed_state()
+    rig.driver.quit()
+    rig.bridge(env=profile["operator"])
+    rig.browser()
+    rig.wait_js("window.fiberfem.panel.controls === true", what="controls on for the operator")
+    rig.driver.find_element("id", "btn-pause").click()
+    rig.wait_js("window.fiberfem.stats.acks.find(a => a.kind === 'pause' && a.accepted)", 30, "pause acknowledged")
+    assert "paused" in observed_state()
+
+
+CASES = {"secure": case_secure, "stream": case_stream, "heart_rate": case_heart_rate, "force": case_force, "replay": case_replay,
          "bad_input": case_bad_input, "token": case_token, "credit": case_credit}
 
 

@@ -74,7 +74,13 @@ class BusLink:
         self._waitset.set_trigger(True)
 
     def commands_matched(self) -> bool:
-        return self.client._command is not None and bool(self.client._command.get_matched_subscriptions())
+        """Whether a service reads commands (assumed when the binding cannot tell: cyclonedds
+        0.10 has no matched-subscription query; an unread command then times out)."""
+        writer = self.client._command
+        if writer is None:
+            return False
+        matched = getattr(writer, "get_matched_subscriptions", None)
+        return matched is None or bool(matched())
 
     def _run(self):
         while not self._stop:
