@@ -102,14 +102,7 @@ class Rig:
         return self.client
 
     def browser(self, query: str = "", width: int = 1000, height: int = 640):
-        o = webdriver.ChromeOptions()
-        for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", f"--window-size={width},{height}",
-                  "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-proxy-server"):
-            o.add_argument(a)
-        o.binary_location = CHROMIUM
-        self.driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=o)
-        self.driver.set_script_timeout(30)
-        self.driver.get(f"http://127.0.0.1:{self.port}/{query}")
+        self.driver = open_page(self.port, query, width, height)
         return self.driver
 
     def js(self, script: str, *args):
@@ -141,6 +134,19 @@ class Rig:
             self.driver.quit()
         for p in reversed(self.procs):
             p.close()
+
+
+def open_page(port: int, query: str = "", width: int = 1000, height: int = 640) -> webdriver.Chrome:
+    """Debian's headless Chromium (WebGL in SwiftShader, no GPU here) on the bridge's page."""
+    o = webdriver.ChromeOptions()
+    for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", f"--window-size={width},{height}",
+              "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-proxy-server"):
+        o.add_argument(a)
+    o.binary_location = CHROMIUM
+    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=o)
+    driver.set_script_timeout(30)
+    driver.get(f"http://127.0.0.1:{port}/{query}")
+    return driver
 
 
 def silhouette(img: np.ndarray) -> np.ndarray:
