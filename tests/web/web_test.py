@@ -16,6 +16,7 @@ import numpy as np
 
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.keys import Keys
+from selenium.webdriver.support.ui import Select
 
 from harness import Rig, silhouette
 
@@ -68,6 +69,26 @@ def case_heart_rate(rig: Rig, out_dir: str):
     reported = wait_status(rig, lambda s: s.heart_rate_bpm == want)
     print(f"the service reports {reported.heart_rate_bpm} /min after the slider moved to {want}")
     rig.wait_js(f"document.getElementById('st-rate').textContent.startsWith('{want:.1f}')", what="the page's rate")
+
+
+def case_runs(rig: Rig, out_dir: str):
+    """The page lists every run on the domain and switches to the one clicked, in the field chosen."""
+    rig.serve()
+    other = f"{rig.run_id}-cantilever"
+    rig.start([rig.bin, "serve", "--builtin", "cantilever", "--run-id", other, "--threads", "1"], "serve-cantilever")
+    rig.witness().resolve_run(other, wait_s=30)
+    rig.bridge()
+    rig.browser()
+    rig.wait_js("document.querySelectorAll('#runs li').length === 2", what="both runs listed")
+    rig.driver.find_element("css selector", f"#runs li[data-run='{other}']").click()
+    shown = rig.wait_js(f"window.fiberfem.stats.topology.run === '{other}' && window.fiberfem.stats.topology", what="the switch")
+    topo = rig.witness().topology(other)
+    assert shown["vertices"] == np.unique(topo.triangles).size and shown["triangles"] == topo.triangles.shape[0], shown
+    Select(rig.driver.find_element("id", "field")).select_by_value("displacement")
+    frame = rig.wait_js("window.fiberfem.stats.lastFrame.field === 'displacement' && window.fiberfem.stats.lastFrame",
+                        what="a displacement frame")
+    assert frame["vertices"] == shown["vertices"], frame
+    print(f"switched to {other}: {shown['vertices']} vertices, {shown['triangles']} triangles, field displacement")
 
 
 def case_force(rig: Rig, out_dir: str):
@@ -282,7 +303,7 @@ def case_secure(rig: Rig, out_dir: str):
     assert "paused" in observed_state()
 
 
-CASES = {"secure": case_secure, "stream": case_stream, "heart_rate": case_heart_rate, "force": case_force, "replay": case_replay,
+CASES = {"secure": case_secure, "runs": case_runs, "stream": case_stream, "heart_rate": case_heart_rate, "force": case_force, "replay": case_replay,
          "bad_input": case_bad_input, "token": case_token, "credit": case_credit}
 
 
