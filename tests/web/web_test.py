@@ -85,7 +85,7 @@ def case_runs(rig: Rig, out_dir: str):
     topo = rig.witness().topology(other)
     assert shown["vertices"] == np.unique(topo.triangles).size and shown["triangles"] == topo.triangles.shape[0], shown
     Select(rig.driver.find_element("id", "field")).select_by_value("displacement")
-    frame = rig.wait_js("window.fiberfem.stats.lastFrame.field === 'displacement' && window.fiberfem.stats.lastFrame",
+    frame = rig.wait_js("(window.fiberfem.stats.lastFrame || {}).field === 'displacement' && window.fiberfem.stats.lastFrame",
                         what="a displacement frame")
     assert frame["vertices"] == shown["vertices"], frame
     print(f"switched to {other}: {shown['vertices']} vertices, {shown['triangles']} triangles, field displacement")

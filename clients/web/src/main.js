@@ -42,6 +42,7 @@ ws.onmessage = (event) => {
       view.setSurface(msg.triangles, msg.rest);
       panel.topology(msg);
       stats.topology = { run: msg.run, vertices: msg.vertices, triangles: msg.triangles.length / 3, replay: msg.replay };
+      if (pending) send({ type: "ready" }); // dropped undrawn: ask for one of the new surface
       pending = null;
       break;
     case "status": panel.status(msg); stats.status = msg; break;
@@ -57,7 +58,10 @@ function draw() {
   if (pending && view.mesh && pending.vertices * 3 === view.mesh.geometry.attributes.position.array.length) {
     const f = pending;
     pending = null;
-    if (f.field !== colouring.field) colouring.reset(f.field, regionNames);
+    if (f.field !== colouring.field) {  // the bridge fell back from a field the run cannot show
+      colouring.reset(f.field, regionNames);
+      $("field").value = f.field;
+    }
     const rgb = view.colours();
     const [lo, hi] = colouring.paint(f.values, rgb);
     view.setFrame(f.positions, rgb);

@@ -4,7 +4,10 @@ It waits on the readers (a Cyclone WaitSet, no polling), keeps each run's newest
 topology and state, writes the commands the pages post and matches their acknowledgements,
 and hands everything to the asyncio side through `notify` (called from this thread). A
 state that arrives while the pages are still drawing the last one replaces it: nothing
-queues, so a slow page never holds the service back (the state reader is keep-last-1)."""
+queues, so a slow page never holds the service back (the state reader is keep-last-1).
+
+Only this thread writes the dictionaries of runs; the asyncio side reads single keys or
+takes copies (`dict(...)`), both atomic under the GIL, never iterates them in place."""
 
 import queue
 import threading

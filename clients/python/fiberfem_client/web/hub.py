@@ -32,7 +32,7 @@ class Hub:
 
     def runs(self) -> list:
         return [{"run_id": r, "scene_name": s.scene_name, "host": s.host, "replay": s.replay, "state": s.state}
-                for r, s in sorted(self.link.statuses.items())]
+                for r, s in sorted(dict(self.link.statuses).items())]  # a copy: the bus thread adds runs
 
     def status(self, run: str) -> Optional[dict]:
         s = self.link.statuses.get(run)
@@ -57,8 +57,8 @@ class Hub:
         if cached is not None and cached[0] == got.state.frame:
             return cached
         st = got.state
-        if st.positions.shape[0] != surface.topology.rest_positions.shape[0] and surface.topology.state_nodes.size == 0:
-            raise FieldUnavailable("the state and the topology disagree on the node count")
+        if st.positions.shape[0] <= surface.state_rows.max(initial=-1):
+            raise FieldUnavailable(f"a state of {st.positions.shape[0]} nodes does not fit the topology")
         data = encode_frame(st.frame, st.time_s, got.source_ms, got.bridge_ms, st.parameter_version, field,
                             surface.positions(st), surface.field(field, st))
         self._frames[(run, field)] = (st.frame, data)
@@ -68,6 +68,8 @@ class Hub:
         """Beats since the run's time zero, integrated over statuses from its heart rate (a
         rate change counts from the status that reports it; a reset or seek back restarts)."""
         s = self.link.statuses.get(run)
+        if s is None:
+            return
         t_prev, beats = self._beats.get(run, (0.0, 0.0))
         if s.time_s < t_prev:
             t_prev, beats = 0.0, 0.0

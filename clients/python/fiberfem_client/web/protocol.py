@@ -94,6 +94,8 @@ def status_message(s, beat: float) -> dict:
             "real_time_factor", "step_ms", "solver_iterations", "solver_residual", "parameter_version",
             "heart_rate_bpm", "peak_tension_pa", "dt_s", "recording", "recorded_frames", "last_message",
             "failed_steps", "recovered_steps")
-    out = {k: getattr(s, k) for k in keys}
-    out.update(type="status", beat=beat)
-    return json.loads(json.dumps(out, default=float).replace("NaN", "null"))
+    def plain(v):  # JSON has no NaN or infinity: those are shown as unknown (null)
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+    out = {k: plain(getattr(s, k)) for k in keys}
+    out.update(type="status", beat=plain(beat))
+    return out

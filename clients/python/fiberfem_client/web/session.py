@@ -7,6 +7,7 @@ never builds a backlog, and the bus thread never waits for any page."""
 import asyncio
 import itertools
 import json
+import traceback
 from typing import Optional
 
 from aiohttp import WSMsgType, web
@@ -38,10 +39,10 @@ class Session:
             self.wake.set()
 
     async def serve(self):
+        await self._send_json({"type": "hello", "fields": list(FIELDS), "controls": not self.refused,
+                               "why_not": self.refused, "session": self.number})
         sender = asyncio.ensure_future(self._send_loop())
         try:
-            await self._send_json({"type": "hello", "fields": list(FIELDS), "controls": not self.refused,
-                                   "why_not": self.refused, "session": self.number})
             async for msg in self.ws:
                 if msg.type == WSMsgType.TEXT:
                     await self._receive(msg.data)
@@ -67,7 +68,7 @@ class Session:
                 await self._error(None, f"no run '{msg['run']}' on the domain")
                 return
             self.run, self.field = msg["run"], msg["field"]
-            self.sent_frame = None
+            self.sent_frame, self.credit = None, True  # a frame in flight is of the old run: not waited for
             self.dirty |= {"topology", "status"}
             self.wake.set()
         else:
@@ -78,10 +79,11 @@ class Session:
         if self.refused:
             await self._error(rid, f"not permitted: {self.refused}")
             return
-        if not self.run or self.run not in self.hub.link.statuses:
+        status = self.hub.link.statuses.get(self.run) if self.run else None
+        if status is None:
             await self._error(rid, "no run is watched")
             return
-        replay = self.hub.link.statuses[self.run].replay
+        replay = status.replay
         if msg["type"] == "press":
             if replay:
                 await self._error(rid, "a replay takes no forces")
@@ -125,22 +127,31 @@ class Session:
         while not self.ws.closed:
             await self.wake.wait()
             self.wake.clear()
-            dirty, self.dirty = self.dirty, set()
-            if "runs" in dirty:
-                await self._send_json({"type": "runs", "runs": self.hub.runs()})
-                if self.run is None and self.hub.link.statuses:
-                    self.run = sorted(self.hub.link.statuses)[0]
-                    dirty |= {"topology", "status"}
-            if self.run is None:
-                continue
-            if "topology" in dirty:
-                await self._send_topology()
-            if "status" in dirty:
-                status = self.hub.status(self.run)
-                if status is not None:
-                    await self._send_json(status)
-            if self.credit:
-                await self._send_frame()
+            try:
+                await self._send_pending()
+            except ConnectionError:
+                return
+            except Exception as e:  # a bug must not silence the page: say it there and on stderr
+                traceback.print_exc()
+                await self._error(None, f"the bridge failed to send: {e!r}")
+
+    async def _send_pending(self):
+        dirty, self.dirty = self.dirty, set()
+        if "runs" in dirty:
+            await self._send_json({"type": "runs", "runs": self.hub.runs()})
+            if self.run is None and self.hub.link.statuses:
+                self.run = min(dict(self.hub.link.statuses))
+                dirty |= {"topology", "status"}
+        if self.run is None:
+            return
+        if "topology" in dirty:
+            await self._send_topology()
+        if "status" in dirty:
+            status = self.hub.status(self.run)
+            if status is not None:
+                await self._send_json(status)
+        if self.credit:
+            await self._send_frame()
 
     async def _send_topology(self):
         try:
