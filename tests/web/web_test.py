@@ -8,6 +8,7 @@ reports to an independent Python client."""
 
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import time
@@ -220,6 +221,23 @@ def case_token(rig: Rig, out_dir: str):
     assert "read-only" in why, why
 
 
+def case_cli(rig: Rig, out_dir: str):
+    """`fiberfem web`'s own errors: a missing environment, a taken port, a port out of range."""
+    def web(*args, env=None):
+        return subprocess.run([rig.bin, "web", *args], env=env or rig.env, capture_output=True, text=True, timeout=30)
+    r = web(env=dict(rig.env, FIBERFEM_WEB_PYTHON="/nonexistent/python"))
+    assert r.returncode == 3 and "no Python environment at /nonexistent/python" in r.stderr, r
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        r = web("--port", str(port))
+    assert r.returncode == 2 and f"cannot listen on 127.0.0.1 port {port}" in r.stderr, r
+    r = web("--port", "70000")
+    assert r.returncode != 0 and "--port" in r.stderr, r
+    print("missing environment: exit 3; taken port: exit 2; --port 70000 refused")
+
+
 def case_credit(rig: Rig, out_dir: str):
     """A page that does not ask for frames gets one and then nothing (no backlog); when it
     asks, it gets the newest frame, not the next one. Spoken by a bare WebSocket client."""
@@ -303,7 +321,7 @@ def case_secure(rig: Rig, out_dir: str):
     assert "paused" in observed_state()
 
 
-CASES = {"secure": case_secure, "runs": case_runs, "stream": case_stream, "heart_rate": case_heart_rate, "force": case_force, "replay": case_replay,
+CASES = {"cli": case_cli, "secure": case_secure, "runs": case_runs, "stream": case_stream, "heart_rate": case_heart_rate, "force": case_force, "replay": case_replay,
          "bad_input": case_bad_input, "token": case_token, "credit": case_credit}
 
 
