@@ -95,7 +95,7 @@ def measure(rig: Rig, service_pid: int, bridge_pid: int, pages: int, sockets: in
         cpu0 = cpu_seconds(service_pid), cpu_seconds(bridge_pid)
         steps, rtf, end = [], [], time.monotonic() + seconds
         while time.monotonic() < end:
-            s = rig.witness().status(rig.run_id)
+            s = rig.witness().status(rig.run_id, wait_s=15)  # a loaded machine may stall a step for seconds
             steps.append(s.frames_per_second)
             rtf.append(s.real_time_factor)
         cpu1 = cpu_seconds(service_pid), cpu_seconds(bridge_pid)
@@ -109,7 +109,7 @@ def measure(rig: Rig, service_pid: int, bridge_pid: int, pages: int, sockets: in
     lat = [x for s in stats for x in s["latencies"]]
     frames = sum(s["frames"] for s in stats)
     return {
-        "pages": f"{pages} browsers" if not sockets else f"{sockets} sockets",
+        "pages": f"{pages} browser{'' if pages == 1 else 's'}" if not sockets else f"{sockets} socket{'' if sockets == 1 else 's'}",
         "steps_per_s": statistics.median(steps),
         "real_time_factor": statistics.median(rtf),
         "service_cpu": (cpu1[0] - cpu0[0]) / seconds,
@@ -121,6 +121,15 @@ def measure(rig: Rig, service_pid: int, bridge_pid: int, pages: int, sockets: in
         "latency_p99_ms": percentile(lat, 0.99),
         "frames": frames,
     }
+
+
+def row(r: dict) -> str:
+    def f(v, fmt, unit=""):  # no clients: nothing was drawn, the cell stays empty
+        return "" if v != v else f"{v:{fmt}}{unit}"
+    return (f"| {r['pages']} | {r['steps_per_s']:.1f} | {r['real_time_factor']:.2f} | {100 * r['service_cpu']:.0f} % | "
+            f"{100 * r['bridge_cpu']:.0f} % | {f(r['fps'], '.1f')} | {f(r['bytes_per_frame'], '.0f')} | "
+            f"{f(r['bytes_per_s'], '.0f')} | {f(r['latency_median_ms'], '.1f', ' ms')} | {f(r['latency_p99_ms'], '.1f', ' ms')} | "
+            f"{r['frames']} |")
 
 
 def main():
@@ -144,9 +153,7 @@ def main():
         for _ in range(a.repeats):
             for n, m in [(n, 0) for n in a.browsers] + [(0, m) for m in a.sockets]:
                 r = measure(rig, service_pid, bridge.p.pid, n, m, a.seconds)
-                print(f"| {r['pages']} | {r['steps_per_s']:.1f} | {r['real_time_factor']:.2f} | {100 * r['service_cpu']:.0f} % | "
-                      f"{100 * r['bridge_cpu']:.0f} % | {r['fps']:.1f} | {r['bytes_per_frame']:.0f} | {r['bytes_per_s']:.0f} | "
-                      f"{r['latency_median_ms']:.1f} ms | {r['latency_p99_ms']:.1f} ms | {r['frames']} |", flush=True)
+                print(row(r), flush=True)
     finally:
         rig.close()
     return 0

@@ -247,6 +247,13 @@ class Client:
             time.sleep(0.005)
         raise FiberfemError(f"no acknowledgement of '{kind}' from '{run_id}' in {wait_s} s")
 
+    def entities(self) -> dict:
+        """The participant's readers ("status", "state", "topology", "ack") and command writer
+        ("command"; None with "ack" when commands are refused), for a caller that waits on
+        them itself (fiberfem web's bridge attaches them to a WaitSet)."""
+        return {"status": self._status, "state": self._state, "topology": self._topology, "ack": self._ack,
+                "command": self._command}
+
     def post(self, run_id: str, kind: str, args: Optional[dict] = None) -> Command:
         """Writes a command without waiting (its answer comes through take_acks); returns the
         sample, to write again unchanged when unanswered (the service applies an id once)."""

@@ -12,7 +12,7 @@ takes copies (`dict(...)`), both atomic under the GIL, never iterates them in pl
 import queue
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Dict, Optional
 
 import numpy as np
@@ -41,7 +41,7 @@ class Pending:
     command: object
     reply: Callable[[Optional[Ack], str], None]
     written: float
-    first: float = field(default=0.0)
+    first: float
 
 
 class BusLink:
@@ -54,11 +54,12 @@ class BusLink:
         self.states: Dict[str, Received] = {}
         self._outbox: "queue.Queue" = queue.Queue()
         self._pending: Dict[str, Pending] = {}
-        self._lock = threading.Lock()
         self._stop = False
         self._waitset = WaitSet(client.dp)
         mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
-        for reader in (client._status, client._state, client._topology, client._ack):
+        self._dds = client.entities()
+        for name in ("status", "state", "topology", "ack"):
+            reader = self._dds[name]
             if reader is not None:
                 self._waitset.attach(ReadCondition(reader, mask))
         self._thread = threading.Thread(target=self._run, name="fiberfem-bus", daemon=True)
@@ -79,7 +80,7 @@ class BusLink:
     def commands_matched(self) -> bool:
         """Whether a service reads commands (assumed when the binding cannot tell: cyclonedds
         0.10 has no matched-subscription query; an unread command then times out)."""
-        writer = self.client._command
+        writer = self._dds["command"]
         if writer is None:
             return False
         matched = getattr(writer, "get_matched_subscriptions", None)
@@ -98,7 +99,7 @@ class BusLink:
 
     def _take_statuses(self):
         fresh = set()
-        for s in self.client._status.take(N=64):
+        for s in self._dds["status"].take(N=64):
             if isinstance(s, ServiceStatus):
                 new = s.run_id not in self.statuses
                 self.statuses[s.run_id] = s
@@ -110,14 +111,14 @@ class BusLink:
             self.notify("status", run)
 
     def _take_topologies(self):
-        for t in self.client._topology.take(N=16):
+        for t in self._dds["topology"].take(N=16):
             if isinstance(t, MeshTopology):
                 self.topologies[t.run_id] = Client._topology_of(t)
                 self.notify("topology", t.run_id)
 
     def _take_states(self):
         newest: Dict[str, tuple] = {}
-        for s in self.client._state.take(N=64):
+        for s in self._dds["state"].take(N=64):
             if isinstance(s, MeshState):
                 newest[s.run_id] = (s, s.sample_info.source_timestamp / 1e6)
         now_ms = time.time() * 1e3
@@ -152,7 +153,7 @@ class BusLink:
                 del self._pending[cid]
                 p.reply(None, f"no acknowledgement of '{p.command.kind}' in {ANSWER_WITHIN_S:g} s")
             elif now - p.written > RESEND_AFTER_S:
-                self.client._command.write(p.command)
+                self._dds["command"].write(p.command)
                 p.written = now
 
     def _drop_lost_runs(self):
