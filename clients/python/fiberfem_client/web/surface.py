@@ -46,8 +46,9 @@ class Surface:
         vertex_of = triangles.ravel().astype(np.int64)
         element_of = np.repeat(topo.triangle_elements, 3)
         corners = np.bincount(vertex_of, minlength=nodes.size).astype(np.float64)
-        region = np.zeros(nodes.size, dtype=np.float32)
-        region[vertex_of] = topo.element_regions[element_of]  # one of its triangles' regions
+        # A vertex's region: that of the first boundary triangle that uses it.
+        _, first = np.unique(vertex_of, return_index=True)
+        region = topo.element_regions[element_of[first]].astype(np.float32)
         return cls(topo.run_id, nodes.astype(np.int32), triangles, topo.rest_positions[nodes], rows,
                    vertex_of, element_of, np.maximum(corners, 1.0), region, topo)
 
