@@ -31,7 +31,7 @@ class Session:
         self.wake = asyncio.Event()
         self.wake.set()
         self.force_name = f"web-{self.number}"
-        self.pressing = False
+        self.pressing: Optional[str] = None  # the run a held force is on
 
     def poke(self, what: str, run: str):
         if what == "runs" or run == self.run:
@@ -50,8 +50,8 @@ class Session:
                     await self._error(None, "the page sends text messages (JSON objects) only")
         finally:
             sender.cancel()
-            if self.pressing and self.run:
-                self.hub.link.post(self.run, "clear_force", {"name": self.force_name}, lambda ack, err: None)
+            if self.pressing:
+                self.hub.link.post(self.pressing, "clear_force", {"name": self.force_name}, lambda ack, err: None)
 
     async def _receive(self, text: str):
         try:
@@ -83,19 +83,19 @@ class Session:
         if status is None:
             await self._error(rid, "no run is watched")
             return
-        replay = status.replay
+        replay, run = status.replay, self.run
         if msg["type"] == "press":
             if replay:
                 await self._error(rid, "a replay takes no forces")
                 return
             kind, args = "apply_force", {"name": self.force_name, "target": {"point": msg["point"]}, "force": msg["force"]}
-            self.pressing = True
+            self.pressing = run
         elif msg["type"] == "release":
             if not self.pressing:
                 await self._error(rid, "no force is held")
                 return
-            kind, args = "clear_force", {"name": self.force_name}
-            self.pressing = False
+            kind, args, run = "clear_force", {"name": self.force_name}, self.pressing
+            self.pressing = None
         else:
             kind, args = msg["kind"], msg["args"]
             kinds = REPLAY_KINDS if replay else LIVE_KINDS
@@ -107,7 +107,7 @@ class Session:
 
         def reply(ack, err):  # on the bus thread
             loop.call_soon_threadsafe(lambda: asyncio.ensure_future(self._answer(rid, kind, ack, err)))
-        self.hub.link.post(self.run, kind, args, reply)
+        self.hub.link.post(run, kind, args, reply)
 
     async def _answer(self, rid: int, kind: str, ack, err: str):
         if ack is None:
