@@ -30,7 +30,15 @@ packages=(
   clang libclang-rt-14-dev libomp-14-dev ccache
   # the amg preconditioner (AMGCL, header-only; Debian's contrib component, enabled below)
   libamgcl-dev
+  # fiberfem web (docs/web.md): headless Chromium and its WebDriver for the browser tests;
+  # Python's headers for the bridge's cyclonedds binding, built against the system library
+  chromium chromium-driver python3-dev
 )
+# node and npm bundle the page of fiberfem web (clients/web) at build time; a machine that
+# has them from elsewhere keeps its own (Debian's npm conflicts with other nodejs builds).
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  packages+=(nodejs npm)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
@@ -81,7 +89,7 @@ else
 fi
 
 # Python packages (tests and tools) in a virtual environment beside the build.
-if ! .venv/bin/python -c "import meshio, gmsh, h5py, cyclonedds, fiberfem_client, dask, distributed, pandas, pyarrow, scipy, yaml, tqdm, fiberfem_client.sweep" 2>/dev/null; then
+if ! .venv/bin/python -c "import meshio, gmsh, h5py, cyclonedds, fiberfem_client, dask, distributed, pandas, pyarrow, scipy, yaml, tqdm, fiberfem_client.sweep, aiohttp, selenium" 2>/dev/null; then
   echo "setup: creating .venv with scripts/requirements.txt and the Python client (clients/python)"
   python3 -m venv .venv
   .venv/bin/pip install -q -r scripts/requirements.txt
@@ -90,9 +98,35 @@ else
   echo "setup: .venv ready"
 fi
 
+# .venv-web: the bridge of fiberfem web on the system's Cyclone DDS (docs/web.md): the
+# cyclonedds binding built from its source against cyclonedds-dev (a CYCLONEDDS_HOME of links
+# to the Debian files), so the bridge speaks DDS Security like the service.
+if ! .venv-web/bin/python -c "import cyclonedds, aiohttp, fiberfem_client.web" 2>/dev/null; then
+  echo "setup: creating .venv-web with scripts/requirements-web.txt (cyclonedds built against the system library)"
+  cdds_home="$(mktemp -d)"
+  mkdir -p "$cdds_home/lib" "$cdds_home/bin"
+  ln -s /usr/include "$cdds_home/include"
+  ln -s "$(dpkg -L cyclonedds-dev | grep '/libddsc\.so$' | head -n 1)" "$cdds_home/lib/libddsc.so"
+  ln -s "$(command -v idlc)" "$cdds_home/bin/idlc"
+  python3 -m venv .venv-web
+  CYCLONEDDS_HOME="$cdds_home" .venv-web/bin/pip install -q --no-binary cyclonedds -r scripts/requirements-web.txt
+  .venv-web/bin/pip install -q --no-deps -e clients/python
+  rm -rf "$cdds_home"
+else
+  echo "setup: .venv-web ready"
+fi
+
+# three.js and esbuild (clients/web/package-lock.json) for the page of fiberfem web.
+if [[ ! -x clients/web/node_modules/.bin/esbuild || clients/web/package-lock.json -nt clients/web/node_modules ]]; then
+  echo "setup: npm ci in clients/web (three.js, esbuild)"
+  (cd clients/web && npm ci --no-audit --no-fund --loglevel=error && touch node_modules)
+fi
+
 preset="${FIBERFEM_PRESET:-release}"
 if [[ ! -f "build/$preset/build.ninja" ]]; then
   cmake --preset "$preset"
+elif [[ "$preset" != core-only ]] && ! grep -q fiberfem_web_page "build/$preset/build.ninja"; then
+  cmake --preset "$preset"  # configured before node_modules existed: add the page's target
 fi
 # FIBERFEM_BUILD_TARGETS="fiberfem ..." builds only those (the front door needs just the
 # command; the test command builds the rest).

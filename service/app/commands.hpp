@@ -31,5 +31,7 @@ void add_render_command(CLI::App& app, int& exit_code);
 /// `fiberfem sweep SWEEP.yaml`: a parameter sweep on Dask, handed over to the Python
 /// client package (cmd_sweep.cpp, docs/sweeps.md).
 void add_sweep_command(CLI::App& app, int& exit_code);
+/// `fiberfem web`: execs the browser bridge (cmd_web.cpp; docs/web.md).
+void add_web_command(CLI::App& app, int& exit_code);
 
 }  // namespace fiberfem::app

@@ -25,6 +25,9 @@ int main(int argc, char** argv) {
   fiberfem::app::add_render_command(app, exit_code);
 #endif
   fiberfem::app::add_sweep_command(app, exit_code);
+#ifdef FIBERFEM_HAVE_WEB
+  fiberfem::app::add_web_command(app, exit_code);
+#endif
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Dict, Iterator, Optional
 
 import numpy as np
-from cyclonedds.core import Policy, Qos
+from cyclonedds.core import DDSException, Policy, Qos
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
@@ -108,13 +108,22 @@ class Client:
         self._next = 0
         self.dp = DomainParticipant(domain_id)
         t = {k: Topic(self.dp, TOPIC_NAMES[k], cls, qos=QOS[k])
-             for k, cls in (("topology", MeshTopology), ("state", MeshState), ("command", Command),
-                            ("ack", CommandAck), ("status", ServiceStatus))}
+             for k, cls in (("topology", MeshTopology), ("state", MeshState), ("status", ServiceStatus))}
         self._status = DataReader(self.dp, t["status"], qos=READER_QOS["status"])
-        self._ack = DataReader(self.dp, t["ack"], qos=READER_QOS["ack"])
         self._state = DataReader(self.dp, t["state"], qos=READER_QOS["state"])
         self._topology = DataReader(self.dp, t["topology"], qos=READER_QOS["topology"])
-        self._command = DataWriter(self.dp, t["command"], qos=QOS["command"])
+        # The command path, absent when access control refuses it (an observer identity in
+        # secure mode, docs/security.md): watching still works, send raises.
+        self.commands_refused = ""
+        try:
+            self._ack = DataReader(self.dp, Topic(self.dp, TOPIC_NAMES["ack"], CommandAck, qos=QOS["ack"]),
+                                   qos=READER_QOS["ack"])
+            self._command = DataWriter(self.dp, Topic(self.dp, TOPIC_NAMES["command"], Command, qos=QOS["command"]),
+                                       qos=QOS["command"])
+        except DDSException as e:
+            self._ack = self._command = None
+            self.commands_refused = ("this identity may not send commands (observer identity: commands need the "
+                                     f"operator role, docs/security.md): {e}")
         self.runs: Dict[str, ServiceStatus] = {}
         self._seen: Dict[str, float] = {}  # monotonic time of each run's newest status
 
@@ -170,19 +179,23 @@ class Client:
         while time.monotonic() < end:
             for t in self._topology.take(N=16):
                 if isinstance(t, MeshTopology) and t.run_id == run_id:
-                    return Topology(
-                        t.run_id, t.scene_name, t.scene_hash, t.replay,
-                        np.asarray(t.rest_positions, dtype=np.float32).reshape(-1, 3),
-                        np.asarray(t.tets, dtype=np.int32).reshape(-1, 4),
-                        np.asarray(t.triangles, dtype=np.int32).reshape(-1, 3),
-                        np.asarray(t.triangle_elements, dtype=np.int32),
-                        np.asarray(t.element_regions, dtype=np.int16),
-                        list(t.region_names),
-                        np.asarray(t.fibers, dtype=np.float32).reshape(-1, 3),
-                        np.asarray(t.state_nodes, dtype=np.int32),
-                        np.asarray(t.fixed_nodes, dtype=np.int32))
+                    return self._topology_of(t)
             time.sleep(0.02)
         raise FiberfemError(f"no topology from '{run_id}' in {wait_s} s")
+
+    @staticmethod
+    def _topology_of(t: MeshTopology) -> Topology:
+        return Topology(
+            t.run_id, t.scene_name, t.scene_hash, t.replay,
+            np.asarray(t.rest_positions, dtype=np.float32).reshape(-1, 3),
+            np.asarray(t.tets, dtype=np.int32).reshape(-1, 4),
+            np.asarray(t.triangles, dtype=np.int32).reshape(-1, 3),
+            np.asarray(t.triangle_elements, dtype=np.int32),
+            np.asarray(t.element_regions, dtype=np.int16),
+            list(t.region_names),
+            np.asarray(t.fibers, dtype=np.float32).reshape(-1, 3),
+            np.asarray(t.state_nodes, dtype=np.int32),
+            np.asarray(t.fixed_nodes, dtype=np.int32))
 
     def next_state(self, run_id: str, after_frame: int = -1, wait_s: float = 10.0) -> State:
         """The newest state of run_id with a frame after after_frame."""
@@ -209,6 +222,8 @@ class Client:
 
     def send(self, run_id: str, kind: str, args: Optional[dict] = None, wait_s: float = 10.0) -> Ack:
         """Sends a command (docs/commands.md) and waits for its acknowledgement."""
+        if self._command is None:
+            raise FiberfemError(self.commands_refused)
         end = time.monotonic() + wait_s
         self._poll_status()
         # Commands are volatile: wait for a matched command reader (for all the runs seen,
@@ -219,20 +234,40 @@ class Client:
             time.sleep(0.01)
         if not self._command.get_matched_subscriptions():
             raise FiberfemError(f"no service matched the command topic (is '{run_id}' running?)")
-        self._next += 1
-        cid = f"{self.client_id}-{self._next}"
-        command = Command(run_id=run_id, command_id=cid, client_id=self.client_id, kind=kind, args=json.dumps(args or {}))
-        self._command.write(command)
+        command = self.post(run_id, kind, args)
+        cid = command.command_id
         written = time.monotonic()
         while time.monotonic() < end:
-            for a in self._ack.take(N=256):
-                if isinstance(a, CommandAck) and a.run_id == run_id and a.command_id == cid:
+            for a in self.take_acks():
+                if a.run_id == run_id and a.command_id == cid:
                     return Ack(a.accepted, a.reason, a.frame, a.parameter_version)
             if time.monotonic() - written >= 1.0:  # unanswered: again under the same id (applied once)
                 self._command.write(command)
                 written = time.monotonic()
             time.sleep(0.005)
         raise FiberfemError(f"no acknowledgement of '{kind}' from '{run_id}' in {wait_s} s")
+
+    def entities(self) -> dict:
+        """The participant's readers ("status", "state", "topology", "ack") and command writer
+        ("command"; None with "ack" when commands are refused), for a caller that waits on
+        them itself (fiberfem web's bridge attaches them to a WaitSet)."""
+        return {"status": self._status, "state": self._state, "topology": self._topology, "ack": self._ack,
+                "command": self._command}
+
+    def post(self, run_id: str, kind: str, args: Optional[dict] = None) -> Command:
+        """Writes a command without waiting (its answer comes through take_acks); returns the
+        sample, to write again unchanged when unanswered (the service applies an id once)."""
+        self._next += 1
+        command = Command(run_id=run_id, command_id=f"{self.client_id}-{self._next}", client_id=self.client_id,
+                          kind=kind, args=json.dumps(args or {}))
+        self._command.write(command)
+        return command
+
+    def take_acks(self) -> list:
+        """The acknowledgements received since the last call (of every client's commands)."""
+        if self._ack is None:
+            return []
+        return [a for a in self._ack.take(N=256) if isinstance(a, CommandAck)]
 
     def live(self, run_id: str, lost_after_s: float = 3.0) -> Optional[str]:
         """None when run_id is live (a status within lost_after_s, not "stopped"), else why not."""

@@ -1,0 +1,101 @@
+"""The WebSocket messages between `fiberfem web` and its page (spec: docs/web.md).
+
+Text messages are JSON objects with a "type"; the one binary message is a frame: a 48-byte
+little-endian header, then the surface positions (3 float32 per vertex, metres) and the
+field (1 float32 per vertex)."""
+
+import json
+import math
+import struct
+
+import numpy as np
+
+from .surface import FIELDS
+
+FRAME_MAGIC = b"FFW1"
+# magic, vertices, frame, time_s, source ms, bridge ms, parameter version, field index
+FRAME_HEADER = struct.Struct("<4sIdddd II")
+assert FRAME_HEADER.size == 48
+
+# Commands a page may send, per kind of run: the service's and replay's own (docs/commands.md,
+# docs/replay.md); everything else is refused by the bridge before it reaches the bus.
+LIVE_KINDS = ("pause", "resume", "step", "reset", "set_contraction", "set_gravity", "clear_force")
+REPLAY_KINDS = ("pause", "resume", "step", "seek", "set_rate", "loop")
+MAX_MESSAGE_BYTES = 65536
+
+
+class ProtocolError(ValueError):
+    """A message from the page that is not one of docs/web.md's: the reason is shown on the page."""
+
+
+def encode_frame(frame: int, time_s: float, source_ms: float, bridge_ms: float, parameter_version: int,
+                 field: str, positions: np.ndarray, values: np.ndarray) -> bytes:
+    header = FRAME_HEADER.pack(FRAME_MAGIC, positions.shape[0], float(frame), time_s, source_ms, bridge_ms,
+                               parameter_version, FIELDS.index(field))
+    return header + np.ascontiguousarray(positions, dtype="<f4").tobytes() + np.ascontiguousarray(values, dtype="<f4").tobytes()
+
+
+def _number_list(value, name: str, length: int) -> list:
+    if (not isinstance(value, list) or len(value) != length
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)):
+        raise ProtocolError(f"'{name}' must be a list of {length} finite numbers")
+    return [float(v) for v in value]
+
+
+def _request_id(msg: dict):
+    rid = msg.get("id")
+    if not isinstance(rid, int) or isinstance(rid, bool) or not 0 <= rid < 2**53:
+        raise ProtocolError("'id' must be a whole number in [0, 2^53)")
+    return rid
+
+
+def parse(text) -> dict:
+    """Checks one message from the page; raises ProtocolError naming what is wrong."""
+    if not isinstance(text, str):
+        raise ProtocolError("the page sends text messages (JSON objects) only")
+    try:
+        msg = json.loads(text)
+    except ValueError as e:
+        raise ProtocolError(f"not JSON: {e}") from None
+    if not isinstance(msg, dict) or not isinstance(msg.get("type"), str):
+        raise ProtocolError("a message is a JSON object with a string 'type'")
+    kind = msg["type"]
+    allowed = {"ready": set(), "watch": {"run", "field"}, "command": {"id", "kind", "args"},
+               "press": {"id", "point", "force"}, "release": {"id"}}
+    if kind not in allowed:
+        raise ProtocolError(f"unknown message type '{kind}' (types: {', '.join(allowed)})")
+    extra = set(msg) - allowed[kind] - {"type"}
+    if extra:
+        raise ProtocolError(f"'{kind}' takes no '{sorted(extra)[0]}'")
+    if kind == "watch":
+        if not isinstance(msg.get("run"), str) or not msg["run"]:
+            raise ProtocolError("'watch' needs 'run', a run id")
+        if msg.get("field") not in FIELDS:
+            raise ProtocolError(f"'field' must be one of {', '.join(FIELDS)}")
+    elif kind == "command":
+        _request_id(msg)
+        if not isinstance(msg.get("kind"), str):
+            raise ProtocolError("'command' needs 'kind', a string")
+        if not isinstance(msg.get("args", {}), dict):
+            raise ProtocolError("'args' must be a JSON object")
+        msg.setdefault("args", {})
+    elif kind == "press":
+        _request_id(msg)
+        msg["point"] = _number_list(msg.get("point"), "point", 3)
+        msg["force"] = _number_list(msg.get("force"), "force", 3)
+    elif kind == "release":
+        _request_id(msg)
+    return msg
+
+
+def status_message(s, beat: float) -> dict:
+    """A run's ServiceStatus as the page shows it."""
+    keys = ("run_id", "scene_name", "host", "state", "mode", "replay", "frame", "time_s", "frames_per_second",
+            "real_time_factor", "step_ms", "solver_iterations", "solver_residual", "parameter_version",
+            "heart_rate_bpm", "peak_tension_pa", "dt_s", "recording", "recorded_frames", "last_message",
+            "failed_steps", "recovered_steps")
+    def plain(v):  # JSON has no NaN or infinity: those are shown as unknown (null)
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+    out = {k: plain(getattr(s, k)) for k in keys}
+    out.update(type="status", beat=plain(beat))
+    return out
