@@ -6,7 +6,26 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cstdlib>
+#include <unistd.h>
+
+namespace {
+
+// The engine calls BLAS on one thread only (core/solvers/cholesky_factor.cpp), but the
+// pthread OpenBLAS starts a thread per core when it is loaded, and those spin for about
+// 0.1 s before they sleep: a step in that time runs its parallel loops beside them, and
+// on two cores the paper-size beam's first step took 65 ms instead of 3. So the process
+// starts again once with OPENBLAS_NUM_THREADS=1 (a value the user set is kept).
+void without_blas_threads(char** argv) {
+  if (std::getenv("OPENBLAS_NUM_THREADS") != nullptr) return;
+  setenv("OPENBLAS_NUM_THREADS", "1", 1);
+  execv("/proc/self/exe", argv);  // returns only if it failed: go on as before
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  without_blas_threads(argv);
   CLI::App app{"fiberfem: fiber-incorporated corotational FEM"};
   app.require_subcommand(1);
   int exit_code = 0;
