@@ -3,7 +3,8 @@
 # (docs/vega-comparison.md, "Threads"): `fiberfem run` of each beam scene that
 # scripts/vega/compare.sh wrote to build/vega-compare/, 60 steps from rest, --threads 1,
 # 2 and 0 (automatic) alternated, --repeat times; the table gives the medians of the
-# report's steps/s (every step counted, the first factorisation included) and median step.
+# report's steps/s (every step counted, the first factorisation included), median and
+# longest step.
 #
 #   scripts/vega/threads.sh [--sizes "5600 8100 50000 250000"] [--steps 60] [--repeat 3]
 set -euo pipefail
@@ -26,7 +27,7 @@ for s in $sizes; do
 done
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
-echo "| tets | threads | steps/s | median step ms | first step ms |"
+echo "| tets | threads | steps/s | median step ms | longest step ms |"
 echo "|---:|---|---:|---:|---:|"
 for s in $sizes; do
   for ((r = 1; r <= repeat; r++)); do
