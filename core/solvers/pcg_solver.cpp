@@ -1,5 +1,8 @@
 #include "core/solvers/pcg_solver.hpp"
 
+#include <omp.h>
+
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -57,6 +60,10 @@ SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd&
   if (lagged_.factor_beside(A, *slot)) {
     if (sync) sync->sync_matrix();  // the copy to factorise, and block Jacobi, read the CSR values
     lagged_.start_beside(A, *slot);
+    // The rest of this step leaves its core to the new thread, as the next steps will
+    // (Simulator::step counts threads_beside()): three threads on two cores made this
+    // step's block products wait for a descheduled one (1.5 s at 250,000 tets).
+    omp_set_num_threads(std::max(1, omp_get_max_threads() - 1));
   }
   int fallback = 0;  // iterations of block Jacobi that fell short
   if (slot->beside) {
