@@ -3,7 +3,6 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <chrono>
 #include <vector>
 #include <stdexcept>
 #include <string>
@@ -22,9 +21,7 @@ SparseMatrix with_values(const SparseMatrix& pattern, const Eigen::VectorXd& val
 FactorSlot& LaggedFactors::select_slot(SolveStats& st) {
   ++clock_;
   // Finished factors of retired slots are dropped (their threads joined, briefly).
-  retired_.erase(std::remove_if(retired_.begin(), retired_.end(),
-                                [](const auto& b) { return b->job.wait_for(std::chrono::seconds(0)) == std::future_status::ready; }),
-                 retired_.end());
+  retired_.erase(std::remove_if(retired_.begin(), retired_.end(), [](const auto& b) { return !b->running(); }), retired_.end());
   std::unique_ptr<FactorSlot>* lru = nullptr;
   for (auto& sl : slots_) {
     if (sl->key == key_) {
@@ -136,12 +133,9 @@ void LaggedFactors::note_iterations(FactorSlot& slot, int iterations) const {
 }
 
 int LaggedFactors::threads_beside() const {
-  auto running = [](const std::shared_ptr<BesideFactor>& b) {
-    return b && b->job.valid() && b->job.wait_for(std::chrono::seconds(0)) != std::future_status::ready;
-  };
   int n = 0;
-  for (const auto& sl : slots_) n += running(sl->beside);
-  for (const auto& b : retired_) n += running(b);
+  for (const auto& sl : slots_) n += sl->beside && sl->beside->running();
+  for (const auto& b : retired_) n += b->running();
   return n;
 }
 

@@ -5,6 +5,7 @@
 #include "core/linear_solver.hpp"
 #include "core/solvers/warp_preconditioner.hpp"
 
+#include <chrono>
 #include <future>
 #include <memory>
 #include <vector>
@@ -19,6 +20,7 @@ struct BesideFactor {
   SparseMatrix matrix;     // what is factorised (kept for checkpoints)
   double left = 0;         // fallback iterations before it takes over
   std::future<void> job;   // declared last: destroyed, so waited for, first
+  bool running() const { return job.valid() && job.wait_for(std::chrono::seconds(0)) != std::future_status::ready; }
 };
 
 /// The factor slots of a PCG solver with the cholesky or amg preconditioner, and the warp

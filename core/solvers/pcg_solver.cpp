@@ -57,8 +57,10 @@ SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd&
   SolveStats st;
   SparseSystem* sync = use_blocks_ ? system_ : nullptr;
   FactorSlot* slot = &lagged_.select_slot(st);
-  if (lagged_.factor_beside(A, *slot)) {
-    if (sync) sync->sync_matrix();  // the copy to factorise, and block Jacobi, read the CSR values
+  const bool start = lagged_.factor_beside(A, *slot);
+  // The copy to factorise, and block Jacobi, read the CSR values.
+  if ((start || slot->beside) && sync) sync->sync_matrix();
+  if (start) {
     lagged_.start_beside(A, *slot);
     // The rest of this step leaves its core to the new thread, as the next steps will
     // (Simulator::step counts threads_beside()): three threads on two cores made this
@@ -67,7 +69,6 @@ SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd&
   }
   int fallback = 0;  // iterations of block Jacobi that fell short
   if (slot->beside) {
-    if (sync) sync->sync_matrix();
     first_guess_ = x;
     const SolveStats cg = run(jacobi_pre_, A, b, x, Ax0);
     LaggedFactors::note_fallback(*slot, cg.iterations, !cg.ok);

@@ -6,6 +6,7 @@
 // .venv (FIBERFEM_VENV_PYTHON, set at configure time, made by scripts/setup.sh).
 
 #include "service/app/commands.hpp"
+#include "service/app/python_handover.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -16,15 +17,11 @@
 #include <iostream>
 #include <string>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 namespace fiberfem::app {
 namespace {
-
-std::string python_interpreter() {
-  if (const char* p = std::getenv("FIBERFEM_PYTHON"); p && *p) return p;
-  return FIBERFEM_VENV_PYTHON;
-}
 
 // This binary's own path: the workers run the same `fiberfem` the user called.
 std::string own_binary() {
@@ -34,7 +31,7 @@ std::string own_binary() {
 }
 
 int hand_over(const std::vector<std::string>& args) {
-  const std::string python = python_interpreter();
+  const std::string python = python_interpreter("FIBERFEM_PYTHON", FIBERFEM_VENV_PYTHON);
   if (access(python.c_str(), X_OK) != 0) {
     std::cerr << "fiberfem sweep: no Python interpreter at " << python
               << " (run scripts/setup.sh to make the project's .venv, or set FIBERFEM_PYTHON to a Python"
@@ -45,10 +42,7 @@ int hand_over(const std::vector<std::string>& args) {
   const std::string self = own_binary();
   if (!self.empty()) argv_s.insert(argv_s.end(), {"--binary", self});
   argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& s : argv_s) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  execv(python.c_str(), argv.data());
+  exec_args(std::move(argv_s));
   std::cerr << "fiberfem sweep: cannot start " << python << ": " << std::strerror(errno) << "\n";
   return 1;
 }

@@ -5,6 +5,7 @@
 // the user started (signals and exit status go straight to it).
 
 #include "service/app/commands.hpp"
+#include "service/app/python_handover.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -15,6 +16,7 @@
 #include <filesystem>
 #include <string>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 namespace fiberfem::app {
@@ -27,16 +29,11 @@ struct WebArgs {
   bool read_only = false;
 };
 
-// FIBERFEM_WEB_PYTHON overrides the interpreter (another environment with the client
-// package, e.g. one whose cyclonedds binding has DDS Security).
-std::string python_path() {
-  const char* env = std::getenv("FIBERFEM_WEB_PYTHON");
-  return env && *env ? env : FIBERFEM_WEB_PYTHON_DEFAULT;
-}
-
 int exec_bridge(const WebArgs& a) {
   namespace fs = std::filesystem;
-  const std::string python = python_path();
+  // FIBERFEM_WEB_PYTHON overrides the interpreter (another environment with the client
+  // package, e.g. one whose cyclonedds binding has DDS Security).
+  const std::string python = python_interpreter("FIBERFEM_WEB_PYTHON", FIBERFEM_WEB_PYTHON_DEFAULT);
   const std::string page = FIBERFEM_WEB_PAGE_DIR;
   if (access(python.c_str(), X_OK) != 0) {
     std::fprintf(stderr, "fiberfem web: no Python environment at %s (run scripts/setup.sh, which makes .venv-web)\n",
@@ -52,10 +49,7 @@ int exec_bridge(const WebArgs& a) {
                                    std::to_string(a.port), "--listen", a.listen};
   if (!a.run_id.empty()) args.insert(args.end(), {"--run", a.run_id});
   if (a.read_only) args.emplace_back("--read-only");
-  std::vector<char*> argv;
-  for (auto& s : args) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  execv(python.c_str(), argv.data());
+  exec_args(std::move(args));
   std::fprintf(stderr, "fiberfem web: cannot run %s: %s\n", python.c_str(), std::strerror(errno));
   return 3;
 }
