@@ -36,17 +36,22 @@ def case_stream(rig: Rig, out_dir: str):
     assert shown["vertices"] == np.unique(topo.triangles).size, (shown, np.unique(topo.triangles).size)
     assert shown["triangles"] == topo.triangles.shape[0], shown
 
-    t0 = rig.js("return window.fiberfem.stats.lastFrame.time_s;")
-    a = rig.canvas_image()[:, :-COLOURBAR_PX]
-    # 0.28 s of simulated time: from one phase of the beat to another (period 0.83 s).
-    rig.wait_js(f"window.fiberfem.stats.lastFrame.time_s >= {t0 + 0.28}", timeout=30, what="0.28 s of run time")
-    b = rig.canvas_image()[:, :-COLOURBAR_PX]
-    sa, sb = silhouette(a), silhouette(b)
-    print(f"silhouette: {sa.mean():.3f} and {sb.mean():.3f} of the view")
-    assert sa.mean() > 0.05 and sb.mean() > 0.05, "a screenshot is blank"
-    inside = sa | sb
-    changed = (np.abs(a - b).sum(axis=2) > 30) & inside
-    print(f"pixels changed inside the heart: {changed.sum() / inside.sum():.3f}")
+    # 0.28 s of simulated time: from one phase of the beat to another (period 0.83 s). On a
+    # loaded machine the wait may overshoot towards the same phase a beat later: a pair
+    # that shows no change is taken again (three pairs at most).
+    for attempt in range(3):
+        t0 = rig.js("return window.fiberfem.stats.lastFrame.time_s;")
+        a = rig.canvas_image()[:, :-COLOURBAR_PX]
+        rig.wait_js(f"window.fiberfem.stats.lastFrame.time_s >= {t0 + 0.28}", timeout=30, what="0.28 s of run time")
+        b = rig.canvas_image()[:, :-COLOURBAR_PX]
+        sa, sb = silhouette(a), silhouette(b)
+        print(f"silhouette: {sa.mean():.3f} and {sb.mean():.3f} of the view")
+        assert sa.mean() > 0.05 and sb.mean() > 0.05, "a screenshot is blank"
+        inside = sa | sb
+        changed = (np.abs(a - b).sum(axis=2) > 30) & inside
+        print(f"pixels changed inside the heart: {changed.sum() / inside.sum():.3f}")
+        if changed.sum() > 0.02 * inside.sum():
+            break
     assert changed.sum() > 0.02 * inside.sum(), "the heart looks the same a third of a beat later"
     if out_dir:  # the page as docs/web.md shows it (docs/images/web.png is a copy)
         os.makedirs(out_dir, exist_ok=True)
