@@ -4,6 +4,8 @@
 
 #include "io/scene.hpp"
 
+#include "io/scene_accurate.hpp"
+
 #include "io/input_file.hpp"
 #include "io/scene_internal.hpp"
 #include "io/sha256.hpp"
@@ -23,8 +25,8 @@ const std::vector<std::string> kTopKeys = {"name",   "mesh",        "regions", "
 
 // The mesh with each element's region, the regions' materials and damping.
 core::Model regions_model(const CheckedMap& top, SceneFiles& files, double refine, std::vector<std::string>& names,
-                          SceneParameters& parameters) {
-  const core::TetMesh generated = detail::read_scene_mesh(top, files, refine);
+                          SceneParameters& parameters, detail::MeshExtras& extras) {
+  const core::TetMesh generated = detail::read_scene_mesh(top, files, refine, extras);
   detail::Regions regions = detail::read_regions(top, generated);
   core::TetMesh mesh(generated.rest_positions(), generated.tets(), regions.region_of);
   for (const auto& [name, nodes] : generated.node_sets()) mesh.set_node_set(name, nodes);
@@ -48,7 +50,7 @@ void fibers_and_contraction(const CheckedMap& top, SceneFiles& files, Scene& sce
   model.set_uniform_fiber(core::Vec3::UnitX());
   if (top.has("fibers")) {
     FiberSpec spec;
-    model.fibers = read_fibers(top.checks(), top["fibers"], model.mesh, files.base_dir, spec, &files.others);
+    model.fibers = read_fibers(top.checks(), top["fibers"], model.mesh, files.base_dir, spec, &files.others, &scene.sheets);
     scene.parameters.fibers = spec;
   }
   if (top.has("contraction")) {
@@ -122,11 +124,15 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   SceneFiles files{base_dir, embedded, {}, {}};
   std::vector<std::string> region_names;
   SceneParameters parameters;
-  Scene scene(regions_model(top, files, fidelity ? fidelity->refine : 1.0, region_names, parameters));
+  detail::MeshExtras extras;
+  Scene scene(regions_model(top, files, fidelity ? fidelity->refine : 1.0, region_names, parameters, extras));
+  scene.mesh_order = extras.order;
+  scene.lv_ellipsoid = extras.lv_ellipsoid;
   scene.region_names = std::move(region_names);
   scene.parameters = std::move(parameters);
   core::Model& model = scene.model;
   fibers_and_contraction(top, files, scene);
+  check_accurate(scene);
   detail::read_fixed(top, model);
   detail::read_loads(top, model, scene.parameters.gravity_m_s2);
   solver(top, fidelity, scene);

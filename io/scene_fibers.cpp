@@ -29,7 +29,7 @@ std::vector<int> nodes_or_set(const CheckedMap& m, const std::string& key, const
   return it->second;
 }
 
-std::vector<Vec3> rule_fibers(const CheckedMap& f, const core::TetMesh& mesh, FiberSpec& s) {
+std::vector<Vec3> rule_fibers(const CheckedMap& f, const core::TetMesh& mesh, FiberSpec& s, std::vector<Vec3>* sheets) {
   const CheckedMap r(f.checks(), f["rule"], "fibers.rule", {"endo_angle", "epi_angle", "inner", "outer", "apex_to_base"});
   if (r.has("endo_angle")) s.rule.endo_angle_deg = r.number("endo_angle", -180, 180);
   if (r.has("epi_angle")) s.rule.epi_angle_deg = r.number("epi_angle", -180, 180);
@@ -40,7 +40,9 @@ std::vector<Vec3> rule_fibers(const CheckedMap& f, const core::TetMesh& mesh, Fi
   const std::vector<int> inner = nodes_or_set(r, "inner", "endo", mesh, s.inner);
   const std::vector<int> outer = nodes_or_set(r, "outer", "epi", mesh, s.outer);
   const Eigen::VectorXd t = core::laplace_coordinate(mesh, inner, outer);
-  return core::helix_rule_fibers(mesh, t, s.rule).fiber;
+  core::FiberField field = core::helix_rule_fibers(mesh, t, s.rule);
+  if (sheets) *sheets = std::move(field.sheet);
+  return std::move(field.fiber);
 }
 
 // Opens a fiber or stroke file named at key path `path`, or fails naming it.
@@ -150,8 +152,11 @@ std::vector<Vec3> file_fibers(const CheckedMap& f, const core::TetMesh& mesh, co
 }  // namespace
 
 std::vector<Vec3> read_fibers(const Checks& checks, const YAML::Node& node, const core::TetMesh& mesh,
-                              const std::string& base_dir, FiberSpec& spec, std::vector<std::string>* files_read) {
-  const CheckedMap f(checks, node, "fibers", {"uniform", "strokes", "rule", "file"});
+                              const std::string& base_dir, FiberSpec& spec, std::vector<std::string>* files_read,
+                              std::vector<Vec3>* sheets) {
+  const CheckedMap f(checks, node, "fibers", {"uniform", "strokes", "rule", "file", "sheet"});
+  if (sheets) sheets->clear();
+  if (f.has("sheet") && !f.has("uniform")) f.checks().fail(f["sheet"], "fibers.sheet", "goes with fibers.uniform (the rule makes its own sheet)");
   int kinds = 0;
   for (const char* k : {"uniform", "strokes", "rule", "file"}) kinds += f.has(k) ? 1 : 0;
   if (kinds != 1) f.fail("give exactly one of uniform, rule, strokes, file");
@@ -163,9 +168,17 @@ std::vector<Vec3> read_fibers(const Checks& checks, const YAML::Node& node, cons
       s.uniform = f.vec3("uniform");
       if (s.uniform.norm() < 1e-12) checks.fail(f["uniform"], "fibers.uniform", "must not be zero");
       fibers.assign(static_cast<size_t>(mesh.num_elements()), s.uniform.normalized());
+      if (f.has("sheet")) {
+        const Vec3 sheet = f.vec3("sheet");
+        const Vec3 across = sheet - sheet.dot(s.uniform.normalized()) * s.uniform.normalized();
+        if (across.norm() < 1e-9 * std::max(sheet.norm(), 1e-300))
+          checks.fail(f["sheet"], "fibers.sheet", "must not be zero or parallel to the fiber");
+        s.uniform_sheet = sheet;
+        if (sheets) sheets->assign(fibers.size(), across.normalized());
+      }
     } else if (f.has("rule")) {
       s.kind = FiberSpec::Kind::rule;
-      fibers = rule_fibers(f, mesh, s);
+      fibers = rule_fibers(f, mesh, s, sheets);
     } else if (f.has("strokes")) {
       s.kind = FiberSpec::Kind::strokes;
       fibers = strokes(f, mesh, base_dir, s, files_read);
@@ -187,7 +200,10 @@ std::vector<Vec3> read_fibers(const Checks& checks, const YAML::Node& node, cons
 YAML::Node write_fibers(const FiberSpec& s) {
   YAML::Node n(YAML::NodeType::Map);
   switch (s.kind) {
-    case FiberSpec::Kind::uniform: n["uniform"] = detail::flow_vec3(s.uniform); break;
+    case FiberSpec::Kind::uniform:
+      n["uniform"] = detail::flow_vec3(s.uniform);
+      if (s.uniform_sheet) n["sheet"] = detail::flow_vec3(*s.uniform_sheet);
+      break;
     case FiberSpec::Kind::rule: {
       YAML::Node r(YAML::NodeType::Map);
       r["endo_angle"] = s.rule.endo_angle_deg;

@@ -3,6 +3,7 @@
 /// conditions and loads, probes, cavities, archive, --set overrides), one file each
 /// (io/scene_*.cpp), as io/scene.cpp's parse_scene calls them. Internal to io.
 
+#include "core/lv_ellipsoid.hpp"
 #include "io/scene.hpp"
 #include "io/scene_sections.hpp"
 
@@ -45,8 +46,14 @@ std::pair<core::Vec3, core::Vec3> read_box(const Checks& checks, const YAML::Nod
 /// [x, y, z] in flow style (how a writer puts a vector).
 YAML::Node flow_vec3(const core::Vec3& v);
 
+/// What the mesh section says beyond the corner mesh: the element order (mesh.order) and,
+/// for the lv_ellipsoid generator, its surfaces (where quadratic edge nodes are placed).
+struct MeshExtras {
+  int order = 1;
+  std::optional<core::LvEllipsoidSpec> lv_ellipsoid;
+};
 /// mesh: a generator (refined by `refine`) or a file.
-core::TetMesh read_scene_mesh(const CheckedMap& top, SceneFiles& files, double refine);
+core::TetMesh read_scene_mesh(const CheckedMap& top, SceneFiles& files, double refine, MeshExtras& extras);
 
 /// regions: the region of every element (first match wins), the names and parameters.
 struct Regions {

@@ -37,7 +37,7 @@ core::TetMesh mesh_file(const CheckedMap& m, SceneFiles& files) {
   }
 }
 
-core::TetMesh lv_ellipsoid(const CheckedMap& m, double refine) {
+core::TetMesh lv_ellipsoid(const CheckedMap& m, double refine, MeshExtras& extras) {
   for (const char* k : {"size", "cells", "origin"})
     if (m.has(k)) m.checks().fail(m[k], m.sub(k), "is a box key (lv_ellipsoid takes inner, outer, base_z, resolution)");
   core::LvEllipsoidSpec lv;
@@ -65,6 +65,7 @@ core::TetMesh lv_ellipsoid(const CheckedMap& m, double refine) {
                     "asks for " + std::to_string(static_cast<long long>(cells)) + " cells" +
                         (refine != 1 ? " (after mesh.refine)" : "") +
                         "; at most 2000000 (circumferential x longitudinal x transmural)");
+  extras.lv_ellipsoid = lv;
   try {
     return core::make_lv_ellipsoid(lv);
   } catch (const std::invalid_argument& e) {
@@ -105,16 +106,17 @@ std::string resolve(const std::string& path, const std::string& base_dir) {
   return !path.empty() && path[0] != '/' && !base_dir.empty() ? base_dir + "/" + path : path;
 }
 
-core::TetMesh read_scene_mesh(const CheckedMap& top, SceneFiles& files, double refine) {
+core::TetMesh read_scene_mesh(const CheckedMap& top, SceneFiles& files, double refine, MeshExtras& extras) {
   if (!top.has("mesh")) top.checks().fail(top.node(), "mesh", "missing (a generator or a file)");
   const CheckedMap m(top.checks(), top["mesh"], "mesh",
-                     {"generator", "size", "cells", "origin", "file", "scale", "inner", "outer", "base_z", "resolution", "refine"});
+                     {"generator", "size", "cells", "origin", "file", "scale", "inner", "outer", "base_z", "resolution", "refine", "order"});
+  if (m.has("order")) extras.order = m.integer("order", 1, 2);
   if (m.has("file") == m.has("generator")) m.fail("give exactly one of generator, file");
   if (m.has("file")) return mesh_file(m, files);
   if (m.has("refine")) refine = m.number("refine", 0.05, 20);
   if (m.has("scale")) m.checks().fail(m["scale"], "mesh.scale", "goes with mesh.file");
   const std::string gen = m.text("generator");
-  if (gen == "lv_ellipsoid") return lv_ellipsoid(m, refine);
+  if (gen == "lv_ellipsoid") return lv_ellipsoid(m, refine, extras);
   if (gen != "box")
     m.checks().fail(m["generator"], "mesh.generator", "'" + printable(gen) + "' is not available (available: box, lv_ellipsoid)");
   return box(m, refine);

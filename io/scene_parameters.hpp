@@ -7,6 +7,7 @@
 
 #include "core/contraction.hpp"
 #include "core/fiber_fields.hpp"
+#include "core/hyperelastic/law.hpp"
 #include "core/linear_solver.hpp"
 #include "core/material.hpp"
 #include "core/model.hpp"
@@ -31,6 +32,8 @@ struct IsotropicConstants {
 /// A region's material as the scene gives it (regions[i].material): one of the four forms
 /// (none before one is read) and the density.
 struct MaterialSpec {
+  /// material.law and its constants (the accurate tier); absent: the linear forms below.
+  std::optional<core::hyperelastic::LawParameters> law;
   std::variant<std::monostate, core::EngineeringConstants, core::LameFiberConstants, core::StiffnessConstants,
                IsotropicConstants>
       form;
@@ -60,6 +63,7 @@ struct FiberSpec {
   enum class Kind { uniform, rule, strokes, file };
   Kind kind = Kind::uniform;
   core::Vec3 uniform = core::Vec3::UnitX();             ///< uniform: the direction as given.
+  std::optional<core::Vec3> uniform_sheet;              ///< uniform: fibers.sheet, when given.
   core::HelixRule rule;                                 ///< rule: angles and long axis.
   std::optional<NodeSelector> inner, outer;             ///< rule: default the node sets endo, epi.
   std::vector<std::vector<core::Vec3>> stroke_lines;    ///< strokes.lines, m.
@@ -102,6 +106,12 @@ struct SolverSpec {
   std::optional<int> threads;
   std::optional<bool> corotation;
   std::optional<core::FirstFactorisation> first_factorisation;
+  // The accurate tier's Newton solver (docs/scenes.md, solver.newton and friends).
+  std::optional<int> load_steps;              ///< solver.load_steps.
+  std::optional<double> newton_tolerance;     ///< solver.newton.tolerance.
+  std::optional<int> newton_max_iterations;   ///< solver.newton.max_iterations.
+  std::optional<bool> newton_line_search;     ///< solver.newton.line_search.
+  std::optional<int> quadrature;              ///< solver.quadrature: points per element.
 };
 
 /// Every section of a scene that a parameter command can change.

@@ -85,10 +85,12 @@ const std::vector<std::string>& material_keys() {
 
 core::Material read_material(const Checks& checks, const YAML::Node& node, const std::string& path, MaterialSpec& spec,
                              const std::vector<std::string>& also_allowed) {
+  if (node.IsMap() && node["law"]) return read_law_material(checks, node, path, spec);
   std::vector<std::string> allowed = material_keys();
   allowed.insert(allowed.end(), also_allowed.begin(), also_allowed.end());
   const CheckedMap m(checks, node, path, allowed);
   MaterialSpec s = spec;
+  s.law.reset();
   if (m.has("density")) s.density_kg_m3 = m.number("density", 0, HUGE_VAL, true);
   if (!(s.density_kg_m3 > 0)) m.fail("needs density (kg/m^3)");
   size_t given = 0, forms = 0;
@@ -120,7 +122,9 @@ core::Material read_material(const Checks& checks, const YAML::Node& node, const
 
 YAML::Node write_material(const MaterialSpec& spec) {
   YAML::Node n(YAML::NodeType::Map);
-  if (const auto* c = std::get_if<core::EngineeringConstants>(&spec.form)) {
+  if (spec.law) {
+    write_law(*spec.law, n);
+  } else if (const auto* c = std::get_if<core::EngineeringConstants>(&spec.form)) {
     n["E_L"] = c->E_L, n["E_T"] = c->E_T, n["nu_LT"] = c->nu_LT, n["nu_T"] = c->nu_T, n["G_L"] = c->G_L;
   } else if (const auto* l = std::get_if<core::LameFiberConstants>(&spec.form)) {
     n["lame"] = std::vector<double>{l->lambda, l->mu};

@@ -28,6 +28,17 @@ core::Material read_material(const Checks& checks, const YAML::Node& node, const
                              const std::vector<std::string>& also_allowed = {});
 /// The material mapping that its reader reads back to the same value.
 YAML::Node write_material(const MaterialSpec& spec);
+/// A material with a `law` key (read_material hands it over): the law's constants into
+/// spec.law; returns the linear material of its small-strain limit.
+core::Material read_law_material(const Checks& checks, const YAML::Node& node, const std::string& path, MaterialSpec& spec);
+/// The law's keys into a material mapping.
+void write_law(const core::hyperelastic::LawParameters& law, YAML::Node& node);
+/// The small-strain limit of a law (its tangent at rest), as the real-time tier's material.
+core::Material linearised_material(const core::hyperelastic::LawParameters& law, double density_kg_m3);
+/// The bulk modulus a compressible law gets when the scene gives none:
+/// kDefaultBulkFactor times its small-strain shear modulus (Poisson's ratio about 0.495), Pa.
+inline constexpr double kDefaultBulkFactor = 100.0;
+double default_bulk_modulus(const core::hyperelastic::LawParameters& law);
 
 /// regions[i].damping.
 core::RayleighDamping read_damping(const Checks& checks, const YAML::Node& node, const std::string& path);
@@ -46,7 +57,8 @@ YAML::Node write_node_selector(const NodeSelector& selector);
 /// paths are looked up in `base_dir`; the files read are appended to `files_read`.
 std::vector<core::Vec3> read_fibers(const Checks& checks, const YAML::Node& node, const core::TetMesh& mesh,
                                     const std::string& base_dir, FiberSpec& spec,
-                                    std::vector<std::string>* files_read = nullptr);
+                                    std::vector<std::string>* files_read = nullptr,
+                                    std::vector<core::Vec3>* sheets = nullptr);
 /// The fibers mapping that its reader reads back to the same value.
 YAML::Node write_fibers(const FiberSpec& spec);
 

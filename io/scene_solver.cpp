@@ -67,7 +67,8 @@ core::RotationMethod read_rotation(const Checks& checks, const YAML::Node& n, co
 void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec) {
   const CheckedMap s(checks, node, "solver",
                      {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
-                      "max_energy_gain", "until", "recycled_solutions", "threads", "corotation", "first_factorisation"});
+                      "max_energy_gain", "until", "recycled_solutions", "threads", "corotation", "first_factorisation",
+                      "load_steps", "newton", "quadrature"});
   SolverSpec r = spec;
   if (s.has("threads")) r.threads = s.integer("threads", 0, 1024);
   if (s.has("recycled_solutions")) r.recycled_solutions = s.integer("recycled_solutions", 0, 64);
@@ -83,6 +84,18 @@ void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec)
   if (s.has("first_factorisation"))
     r.first_factorisation = read_name(checks, s["first_factorisation"], "solver.first_factorisation", kFirstFactorisations);
   if (s.has("warm_start")) r.warm_start = s.boolean("warm_start");
+  if (s.has("load_steps")) r.load_steps = s.integer("load_steps", 1, 1000000);
+  if (s.has("quadrature")) {
+    r.quadrature = s.integer("quadrature", 1, 14);
+    if (*r.quadrature != 1 && *r.quadrature != 4 && *r.quadrature != 11 && *r.quadrature != 14)
+      checks.fail(s["quadrature"], "solver.quadrature", "must be 1, 4, 11 or 14 points per element");
+  }
+  if (s.has("newton")) {
+    const CheckedMap nw(checks, s["newton"], "solver.newton", {"tolerance", "max_iterations", "line_search"});
+    if (nw.has("tolerance")) r.newton_tolerance = nw.number("tolerance", 0, 1, true);
+    if (nw.has("max_iterations")) r.newton_max_iterations = nw.integer("max_iterations", 1, 100000);
+    if (nw.has("line_search")) r.newton_line_search = nw.boolean("line_search");
+  }
   if (s.has("max_energy_gain")) {
     const YAML::Node g = s["max_energy_gain"];
     r.max_energy_gain = g.IsScalar() && (g.Scalar() == "inf" || g.Scalar() == ".inf")
@@ -124,6 +137,11 @@ YAML::Node write_solver(const SolverSpec& s) {
   if (s.threads) n["threads"] = *s.threads;
   if (s.corotation) n["corotation"] = *s.corotation;
   if (s.first_factorisation) n["first_factorisation"] = name_of(*s.first_factorisation, kFirstFactorisations);
+  if (s.load_steps) n["load_steps"] = *s.load_steps;
+  if (s.quadrature) n["quadrature"] = *s.quadrature;
+  if (s.newton_tolerance) n["newton"]["tolerance"] = *s.newton_tolerance;
+  if (s.newton_max_iterations) n["newton"]["max_iterations"] = *s.newton_max_iterations;
+  if (s.newton_line_search) n["newton"]["line_search"] = *s.newton_line_search;
   return n;
 }
 

@@ -25,6 +25,9 @@ json report_head(const io::Scene& sc, const BatchOptions& o, const core::MeshQua
 json probes_json(const io::Scene& sc, const core::Positions& x);
 /// "probe NAME: displacement [...] m (|u| ... m)", a line per probe.
 void print_probes(std::ostream& out, const io::Scene& sc, const core::Positions& x);
+/// A static solve on the accurate tier (material.law, mesh.order 2), into the report's
+/// status, static, timing and probes sections. @return 0 when it converged, else 1.
+int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out);
 /// Energies of a state at rest velocity (the static solution's).
 core::Energies energies_at_rest(const io::Scene& sc, const core::Positions& x);
 /// Writes the report to a temporary file and renames it, so a reader never sees half a

@@ -55,6 +55,7 @@ class Progress {
 };
 
 int run_static(const io::Scene& sc, json& report, std::ostream& out) {
+  if (sc.accurate()) return detail::run_static_accurate(sc, report, out);
   char line[512];
   if (sc.model.contraction.enabled())
     out << "static: note: the static solve has no active stress; the contraction is left out (passive equilibrium)\n";
@@ -225,6 +226,10 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                 quality.min_dihedral_deg, quality.max_dihedral_deg, is_static ? "static" : "dynamic");
   out << line << std::flush;
   for (const std::string& w : sc.warnings) out << "fiberfem: warning: " << w << "\n";
+  if (sc.accurate() && !is_static)
+    throw std::invalid_argument("run: scene '" + sc.name +
+                                "' is on the accurate tier (material.law or mesh.order 2), which solves static problems "
+                                "(solver.mode: static or --static); its dynamic runs are not available");
   json report = detail::report_head(sc, o, quality, is_static);
   const int rc = is_static ? run_static(sc, report, out) : run_dynamic(sc, o, report, out);
   if (!o.report_path.empty()) {

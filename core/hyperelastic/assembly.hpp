@@ -1,0 +1,88 @@
+#pragma once
+/// @file The residual and consistent tangent of a Problem (ACCURATE.md sections 1-2): the
+/// internal force of the laws at every quadrature point, the mixed pressure's coupling
+/// when a region is incompressible, the follower-pressure load and its load stiffness,
+/// body force and active tension, all at one load factor.
+///
+/// Unknowns ("equations") are the free displacement components, numbered node-major, then
+/// the pressures of a mixed problem: one per corner node of an incompressible element at
+/// order 2 (Taylor-Hood P2/P1), one per incompressible element at order 1 (P1/P0, which
+/// locks; kept so the convergence tables can show it).
+
+#include "core/hyperelastic/problem.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <vector>
+
+namespace fiberfem::core::hyperelastic {
+
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+/// What one evaluation found.
+struct Evaluation {
+  double energy_j = 0;          ///< Stored strain energy (laws and penalty), J.
+  int inverted_elements = 0;    ///< Elements with det F <= 0 at a quadrature point.
+  bool finite = true;           ///< Every residual entry finite.
+};
+
+class Assembler {
+ public:
+  /// Precomputes the quadrature data, the unknown numbering and the tangent's pattern.
+  /// @throws std::invalid_argument for an invalid problem or an element whose rest
+  /// Jacobian is not positive at a quadrature point (named by index).
+  explicit Assembler(const Problem& problem);
+
+  int num_nodes() const { return num_nodes_; }
+  int num_pressures() const { return num_pressures_; }
+  int num_free_displacements() const { return num_free_u_; }
+  int num_equations() const { return num_free_u_ + num_pressures_; }
+
+  /// Residual R = f_int - f_ext (size num_equations()) at positions x (3 x nodes, m) and
+  /// pressures p (num_pressures(), Pa), load factor `lambda`; with `K`, also the
+  /// consistent tangent dR/d(unknowns) (its pattern set on the first call, values after).
+  Evaluation evaluate(const Positions& x, const Eigen::VectorXd& p, double lambda, Eigen::VectorXd& R,
+                      SparseMatrix* K) const;
+
+  /// x += alpha * (displacement part of delta) on free components; p += alpha * (pressure part).
+  void add_increment(const Eigen::VectorXd& delta, double alpha, Positions& x, Eigen::VectorXd& p) const;
+  /// Norm of the displacement rows (N) and of the pressure rows (m^3) of a residual.
+  double displacement_norm(const Eigen::VectorXd& R) const { return R.head(num_free_u_).norm(); }
+  double pressure_norm(const Eigen::VectorXd& R) const { return R.tail(num_pressures_).norm(); }
+  /// The external load at load factor 1 on the rest shape (displacement rows), N: a scale
+  /// for convergence tests.
+  double reference_load_norm() const { return reference_load_; }
+  /// Total rest volume, m^3.
+  double volume_m3() const { return volume_; }
+
+ private:
+  struct PointData {
+    Eigen::Matrix<double, 10, 3> dNdX;  ///< Gradients of the shape functions at the point.
+    double dV = 0;                      ///< Weight times rest Jacobian, m^3.
+  };
+  void build_pattern();
+  int equation_of_dof(int dof) const { return free_eq_[static_cast<size_t>(dof)]; }
+  void add_faces(const Positions& x, double lambda, Eigen::VectorXd& R, SparseMatrix* K) const;
+
+  const Problem& problem_;
+  int order_ = 1;
+  int nodes_per_element_ = 4;
+  int points_ = 1;
+  int num_nodes_ = 0;
+  int num_free_u_ = 0;
+  int num_pressures_ = 0;
+  double reference_load_ = 0;
+  double volume_ = 0;
+  std::vector<int> free_eq_;                     ///< Per displacement dof: equation or -1.
+  std::vector<std::array<int, 4>> pressure_eq_;  ///< Per element: equations of its pressure dofs (or -1).
+  int pressures_per_element_ = 0;                ///< 0, 1 (P0) or 4 (P1 on corners).
+  std::vector<Eigen::Vector4d> pressure_shape_;  ///< Per point: pressure shape values.
+  std::vector<PointData> points_data_;           ///< elements x points.
+  Eigen::VectorXd body_force_;                   ///< rho g N_a integrated, per free equation, at lambda 1.
+  std::vector<int> slots_;                       ///< Per element, local (row, col) -> value index.
+  mutable SparseMatrix pattern_;
+  int local_size_ = 0;
+};
+
+}  // namespace fiberfem::core::hyperelastic

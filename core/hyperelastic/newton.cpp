@@ -1,0 +1,154 @@
+// Newton's method for the static problem (ACCURATE.md section 4).
+
+#include "core/hyperelastic/newton.hpp"
+
+#include <Eigen/SparseLU>
+#ifdef FIBERFEM_HAVE_UMFPACK
+#include <Eigen/UmfPackSupport>
+#endif
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace fiberfem::core::hyperelastic {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+#ifdef FIBERFEM_HAVE_UMFPACK
+using LU = Eigen::UmfPackLU<SparseMatrix>;
+#else
+using LU = Eigen::SparseLU<SparseMatrix>;
+#endif
+
+}  // namespace
+
+void NewtonSettings::validate() const {
+  if (load_steps < 1) throw std::invalid_argument("solver.load_steps must be >= 1");
+  if (!(tolerance > 0 && tolerance < 1)) throw std::invalid_argument("solver.newton.tolerance must be in (0, 1)");
+  if (max_iterations < 1) throw std::invalid_argument("solver.newton.max_iterations must be >= 1");
+  if (max_cutbacks < 0) throw std::invalid_argument("solver.newton.max_cutbacks must be >= 0");
+}
+
+NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::VectorXd& p_io, const NewtonSettings& s) {
+  s.validate();
+  const Assembler assembler(problem);
+  const ElementMesh& mesh = *problem.mesh;
+  if (x_io.cols() == 0) x_io = mesh.rest_positions();
+  if (x_io.cols() != mesh.num_nodes()) throw std::invalid_argument("static: initial positions have the wrong node count");
+  if (p_io.size() != assembler.num_pressures()) p_io = Eigen::VectorXd::Zero(assembler.num_pressures());
+  // Fixed components sit at rest.
+  for (size_t d = 0; d < problem.fixed_dofs.size(); ++d)
+    if (problem.fixed_dofs[d]) x_io.data()[d] = mesh.rest_positions().data()[d];
+
+  NewtonReport rep;
+  rep.equations = assembler.num_equations();
+  const double fref = assembler.reference_load_norm();
+  const double volume = assembler.volume_m3();
+  // One merit for both kinds of rows: the force rows against the load, the volume rows
+  // against the body's volume.
+  auto merit = [&](const Eigen::VectorXd& R) {
+    return assembler.displacement_norm(R) / fref + (assembler.num_pressures() > 0 ? R.tail(assembler.num_pressures()).lpNorm<1>() / volume : 0.0);
+  };
+  auto converged_at = [&](const Eigen::VectorXd& R) {
+    return assembler.displacement_norm(R) <= s.tolerance * fref &&
+           (assembler.num_pressures() == 0 || R.tail(assembler.num_pressures()).lpNorm<1>() <= s.tolerance * volume);
+  };
+
+  LU lu;
+  bool analysed = false;
+  SparseMatrix K;
+  Eigen::VectorXd R, Rn, delta;
+  Positions x = x_io;
+  Eigen::VectorXd p = p_io;
+  double lambda = 0, dlambda = 1.0 / s.load_steps;
+  while (lambda < 1.0 - 1e-14) {
+    const double target = std::min(1.0, lambda + dlambda);
+    Positions xt = x;
+    Eigen::VectorXd pt = p;
+    auto t0 = Clock::now();
+    Evaluation ev = assembler.evaluate(xt, pt, target, R, &K);
+    rep.assembly_s += since(t0);
+    bool converged = false;
+    std::vector<double> history;
+    for (int it = 0; it < s.max_iterations && ev.finite && ev.inverted_elements == 0; ++it) {
+      if (converged_at(R)) {
+        converged = true;
+        break;
+      }
+      t0 = Clock::now();
+      if (!analysed) {
+        lu.analyzePattern(K);
+        analysed = true;
+      }
+      lu.factorize(K);
+      if (lu.info() != Eigen::Success) break;
+      delta = lu.solve(R);
+      rep.factor_s += since(t0);
+      if (!delta.allFinite()) break;
+      // Backtracking: halve while the step inverts an element, gives a non-finite residual,
+      // or multiplies the merit by more than kMaxGrowth (a safeguard, not a descent test:
+      // Newton across a large rotation passes through larger residuals on its way).
+      constexpr double kMaxGrowth = 1e3;
+      const double m0 = merit(R);
+      double alpha = 1.0;
+      Positions xn;
+      Eigen::VectorXd pn;
+      bool accepted = false;
+      for (int l = 0; l < (s.line_search ? 20 : 1); ++l, alpha *= 0.5) {
+        xn = xt;
+        pn = pt;
+        assembler.add_increment(delta, -alpha, xn, pn);
+        t0 = Clock::now();
+        ev = assembler.evaluate(xn, pn, target, Rn, nullptr);
+        rep.assembly_s += since(t0);
+        if (ev.finite && ev.inverted_elements == 0 && merit(Rn) < kMaxGrowth * m0) {
+          accepted = true;
+          break;
+        }
+      }
+      ++rep.iterations;
+      if (!accepted) break;
+      xt = xn;
+      pt = pn;
+      t0 = Clock::now();
+      ev = assembler.evaluate(xt, pt, target, R, &K);
+      rep.assembly_s += since(t0);
+      history.push_back(assembler.displacement_norm(R) / fref);
+    }
+    if (!converged && ev.finite && ev.inverted_elements == 0 && converged_at(R)) converged = true;
+    ++rep.load_steps;
+    if (converged) {
+      x = xt;
+      p = pt;
+      lambda = target;
+      rep.residual_history = history;
+      rep.relative_residual = assembler.displacement_norm(R) / fref;
+      continue;
+    }
+    if (rep.cutbacks >= s.max_cutbacks) {
+      char msg[256];
+      std::snprintf(msg, sizeof msg,
+                    "the load cannot be carried: Newton did not converge beyond load factor %.4g (increment %.3g, %d "
+                    "cut-backs); use more solver.load_steps or a smaller load",
+                    lambda, dlambda, rep.cutbacks);
+      rep.message = msg;
+      rep.load_factor = lambda;
+      x_io = x;
+      p_io = p;
+      return rep;
+    }
+    dlambda *= 0.5;
+    ++rep.cutbacks;
+  }
+  rep.converged = true;
+  rep.load_factor = 1.0;
+  x_io = x;
+  p_io = p;
+  return rep;
+}
+
+}  // namespace fiberfem::core::hyperelastic

@@ -1,0 +1,45 @@
+#pragma once
+/// @file Static equilibrium of a Problem by Newton's method with the consistent tangent,
+/// load stepping and a backtracking line search (ACCURATE.md section 4): a step that
+/// inverts an element or gives a non-finite residual is cut back, a load increment that
+/// does not converge is halved, and a load that cannot be carried is reported with the
+/// load factor reached.
+
+#include "core/hyperelastic/assembly.hpp"
+
+#include <string>
+#include <vector>
+
+namespace fiberfem::core::hyperelastic {
+
+/// Every field has a default; validate() names a bad one by its scene key.
+struct NewtonSettings {
+  int load_steps = 10;         ///< solver.load_steps: equal increments of the load factor, >= 1. Default 10.
+  double tolerance = 1e-9;     ///< solver.newton.tolerance: |R_u| / |f_ref| and the volume residual / V, in (0, 1). Default 1e-9.
+  int max_iterations = 30;     ///< solver.newton.max_iterations per increment, >= 1. Default 30.
+  int max_cutbacks = 10;       ///< Halvings of increments over the solve, >= 0. Default 10.
+  bool line_search = true;     ///< solver.newton.line_search. Default true.
+  /// @throws std::invalid_argument naming the key.
+  void validate() const;
+};
+
+struct NewtonReport {
+  bool converged = false;
+  double load_factor = 0;             ///< The load factor of the last converged state (1 when converged).
+  int load_steps = 0;                 ///< Increments taken (cut-backs included).
+  int iterations = 0;                 ///< Newton iterations summed over increments.
+  int cutbacks = 0;
+  double relative_residual = 0;       ///< Final |R_u| / |f_ref|.
+  std::vector<double> residual_history;  ///< |R_u| / |f_ref| after each iteration of the last increment.
+  double assembly_s = 0;              ///< Wall time in residual and tangent evaluations, s.
+  double factor_s = 0;                ///< Wall time in factorisations and solves, s.
+  int equations = 0;                  ///< Unknowns of the linear systems.
+  std::string message;
+};
+
+/// Solves R(x, p) = 0 at load factor 1 from (x, p) (the rest shape and zero pressure when
+/// empty). On failure (x, p) hold the last converged load level.
+/// @throws std::invalid_argument for an invalid problem or settings.
+NewtonReport solve_static(const Problem& problem, Positions& x, Eigen::VectorXd& p, const NewtonSettings& settings = {});
+
+}  // namespace fiberfem::core::hyperelastic

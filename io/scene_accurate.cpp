@@ -1,0 +1,144 @@
+// The accurate tier's problem for a scene (docs/scenes.md, "The accurate tier"): the
+// element mesh of the scene's order (edge nodes on the generator's curved surfaces), the
+// law of every region, material axes, the fixed components, and the loads.
+
+#include "io/scene_accurate.hpp"
+
+#include "core/hyperelastic/ellipsoid_fibers.hpp"
+#include "core/hyperelastic/quadrature.hpp"
+#include "core/hyperelastic/shape_functions.hpp"
+
+#include <algorithm>
+#include <map>
+#include <stdexcept>
+
+namespace fiberfem::io {
+
+namespace {
+
+using core::hyperelastic::ElementMesh;
+using core::hyperelastic::PressureLoad;
+using core::hyperelastic::Problem;
+
+std::array<int, 3> sorted(const core::Tri& t) {
+  std::array<int, 3> s{t[0], t[1], t[2]};
+  std::sort(s.begin(), s.end());
+  return s;
+}
+
+std::shared_ptr<const ElementMesh> element_mesh(const Scene& sc) {
+  const core::TetMesh& corners = sc.model.mesh;
+  if (sc.mesh_order == 2 && sc.lv_ellipsoid)
+    return std::make_shared<const ElementMesh>(corners, 2, core::lv_ellipsoid_edge_placement(*sc.lv_ellipsoid, corners));
+  return std::make_shared<const ElementMesh>(corners, sc.mesh_order);
+}
+
+}  // namespace
+
+bool Scene::accurate() const {
+  if (mesh_order != 1) return true;
+  return std::any_of(parameters.regions.begin(), parameters.regions.end(),
+                     [](const RegionParameters& r) { return r.material.law.has_value(); });
+}
+
+void check_accurate(const Scene& sc) {
+  if (!sc.accurate()) return;
+  for (size_t r = 0; r < sc.parameters.regions.size(); ++r) {
+    const auto& law = sc.parameters.regions[r].material.law;
+    if (!law)
+      throw SceneError(sc.name + ": regions[" + std::to_string(r) + "].material: needs a law" +
+                       (sc.mesh_order == 2 ? " (mesh.order 2 runs on the accurate tier)" : " (another region has one)") +
+                       ": neo_hookean, guccione or holzapfel_ogden");
+    if (law->needs_sheet() && sc.sheets.empty())
+      throw SceneError(sc.name + ": regions[" + std::to_string(r) +
+                       "].material: holzapfel_ogden needs a sheet direction: fibers.rule (its transmural direction) "
+                       "or fibers.uniform with fibers.sheet");
+  }
+}
+
+AccurateProblem accurate_problem(const Scene& sc) {
+  check_accurate(sc);
+  const core::Model& model = sc.model;
+  AccurateProblem out{element_mesh(sc), nullptr, {}};
+  auto problem = std::make_shared<Problem>(out.mesh);
+  const ElementMesh& mesh = *out.mesh;
+  for (const RegionParameters& r : sc.parameters.regions) {
+    problem->region_laws.push_back(*r.material.law);
+    problem->region_density_kg_m3.push_back(r.material.density_kg_m3);
+  }
+  problem->element_region = model.mesh.regions();
+  const auto& fibers = sc.parameters.fibers;
+  if (sc.lv_ellipsoid && fibers && fibers->kind == FiberSpec::Kind::rule && !fibers->inner && !fibers->outer &&
+      fibers->rule.apex_to_base.normalized().isApprox(core::Vec3::UnitZ())) {
+    // The helix rule on the generator's shell: evaluated at every quadrature point in the
+    // shell's own coordinates (Land et al. 2015's definition), not per element.
+    const int points = sc.parameters.solver.quadrature.value_or(Problem::default_points(mesh.order()));
+    const core::hyperelastic::TetRule& rule = core::hyperelastic::tetrahedron_rule(points);
+    problem->axes.reserve(static_cast<size_t>(mesh.num_elements() * points));
+    for (int e = 0; e < mesh.num_elements(); ++e)
+      for (const Eigen::Vector3d& xi : rule.points) {
+        const core::hyperelastic::TetShape sh = core::hyperelastic::tet_shape(mesh.order(), xi);
+        core::Vec3 X = core::Vec3::Zero();
+        for (int a = 0; a < mesh.nodes_per_element(); ++a)
+          X += sh.N(a) * mesh.rest_positions().col(mesh.elements()[static_cast<size_t>(e)][static_cast<size_t>(a)]);
+        problem->axes.push_back(core::hyperelastic::ellipsoid_helix_axes(*sc.lv_ellipsoid, fibers->rule.endo_angle_deg,
+                                                                          fibers->rule.epi_angle_deg, X));
+      }
+  }
+  const bool per_point = !problem->axes.empty();
+  for (int e = 0; !per_point && e < mesh.num_elements(); ++e) {
+    const core::Vec3 f = model.fibers.empty() ? core::Vec3::UnitX() : model.fibers[static_cast<size_t>(e)];
+    problem->axes.push_back(core::hyperelastic::MaterialAxes::from(f, sc.sheets.empty() ? core::Vec3::Zero()
+                                                                                         : sc.sheets[static_cast<size_t>(e)]));
+  }
+  // A static solve holds the contraction at its peak: each region's peak tension.
+  if (model.contraction.enabled()) {
+    problem->active_tension_pa.resize(static_cast<size_t>(mesh.num_elements()));
+    for (int e = 0; e < mesh.num_elements(); ++e)
+      problem->active_tension_pa[static_cast<size_t>(e)] =
+          model.contraction.region_peak_pa[static_cast<size_t>(problem->element_region[static_cast<size_t>(e)])];
+  }
+  problem->gravity_m_s2 = model.loads.gravity_m_s2;
+  if (!model.fixed_dofs.empty()) problem->fixed_dofs = mesh.fixed_dofs(model.fixed_dofs);
+  if (!model.loads.point_forces.empty()) throw SceneError(sc.name + ": loads.forces: the accurate tier takes pressures and gravity, not point forces");
+  std::map<std::array<int, 3>, int> face_of;
+  const auto& boundary = model.mesh.boundary_triangles();
+  for (size_t f = 0; f < boundary.size(); ++f) face_of[sorted(boundary[f])] = static_cast<int>(f);
+  for (size_t i = 0; i < model.loads.surface_loads.size(); ++i) {
+    const core::SurfaceLoad& load = model.loads.surface_loads[i];
+    if (load.force_per_area_pa != core::Vec3::Zero())
+      throw SceneError(sc.name + ": loads.tractions[" + std::to_string(i) + "]: the accurate tier takes pressures, not traction vectors");
+    PressureLoad p;
+    p.pressure_pa = load.pressure_pa;
+    p.follower = load.follower;
+    for (const core::Tri& t : load.faces) {
+      const auto it = face_of.find(sorted(t));
+      if (it == face_of.end()) throw SceneError(sc.name + ": loads.tractions[" + std::to_string(i) + "]: a face is not on the boundary");
+      p.faces.push_back(it->second);
+    }
+    problem->pressures.push_back(std::move(p));
+  }
+  const SolverSpec& s = sc.parameters.solver;
+  if (s.quadrature) problem->quadrature_points = *s.quadrature;
+  if (s.load_steps) out.newton.load_steps = *s.load_steps;
+  if (s.newton_tolerance) out.newton.tolerance = *s.newton_tolerance;
+  if (s.newton_max_iterations) out.newton.max_iterations = *s.newton_max_iterations;
+  if (s.newton_line_search) out.newton.line_search = *s.newton_line_search;
+  problem->validate();
+  out.problem = std::move(problem);
+  return out;
+}
+
+core::Vec3 accurate_probe_displacement(const ElementMesh& mesh, const Probe& probe, const core::Positions& x) {
+  const Eigen::Vector3d xi(probe.weights(1), probe.weights(2), probe.weights(3));
+  const core::hyperelastic::TetShape sh = core::hyperelastic::tet_shape(mesh.order(), xi);
+  const auto& nodes = mesh.elements()[static_cast<size_t>(probe.element)];
+  core::Vec3 u = core::Vec3::Zero();
+  for (int a = 0; a < mesh.nodes_per_element(); ++a) {
+    const int n = nodes[static_cast<size_t>(a)];
+    u += sh.N(a) * (x.col(n) - mesh.rest_positions().col(n));
+  }
+  return u;
+}
+
+}  // namespace fiberfem::io

@@ -1,0 +1,163 @@
+// Newton's method of the accurate tier against closed forms: the incompressible
+// neo-Hookean thick sphere under inner pressure (its pressure-stretch relation and its
+// limit point), a cantilever under follower pressure converging quadratically.
+
+#include "core/hyperelastic/newton.hpp"
+
+#include "core/box_generator.hpp"
+#include "core/lv_ellipsoid.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <set>
+
+namespace fiberfem::core::hyperelastic {
+namespace {
+
+constexpr double kInner = 0.010, kOuter = 0.015, kMu = 10e3;
+
+// Closed form (incompressible neo-Hookean sphere, W = mu/2 (I1 - 3)): with lambda = r/R,
+// the equilibrium d sigma_rr/dr = 2 (sigma_tt - sigma_rr)/r = 2 mu (lambda^2 - lambda^-4)/r
+// and r^3 - R^3 fixed give p = 2 mu [1/l_b + 1/(4 l_b^4) - 1/l_a - 1/(4 l_a^4)], with l_a
+// the inner and l_b the outer stretch.
+double sphere_pressure(double lambda_a) {
+  const double a = lambda_a * kInner;
+  const double b = std::cbrt(kOuter * kOuter * kOuter + a * a * a - kInner * kInner * kInner);
+  const double lb = b / kOuter;
+  auto g = [](double l) { return 1 / l + 0.25 / std::pow(l, 4); };
+  return 2 * kMu * (g(lb) - g(lambda_a));
+}
+
+// A hemispherical shell (the lv_ellipsoid generator with equal radii and the base at the
+// equator): the equator plane is a plane of symmetry (u_z = 0); the nodes on the z axis
+// keep x and y, one equator node keeps y (no rigid motion).
+struct Sphere {
+  Problem problem;
+  std::vector<int> endo_nodes;
+};
+
+Sphere sphere(int order, double pressure_pa) {
+  LvEllipsoidSpec spec;
+  spec.endo_rs_m = spec.endo_rl_m = kInner;
+  spec.epi_rs_m = spec.epi_rl_m = kOuter;
+  spec.base_z_m = 0;
+  spec.circumferential = 12;
+  spec.longitudinal = 5;
+  spec.transmural = 2;
+  const TetMesh corners = make_lv_ellipsoid(spec);
+  auto mesh = std::make_shared<const ElementMesh>(corners, order, lv_ellipsoid_edge_placement(spec, corners));
+  Sphere s{Problem(mesh), {}};
+  Problem& p = s.problem;
+  LawParameters law;
+  law.kind = LawKind::neo_hookean;
+  law.mu_pa = kMu;
+  law.incompressible = true;
+  p.region_laws = {law};
+  p.element_region.assign(static_cast<size_t>(mesh->num_elements()), 0);
+  const Positions& X = mesh->rest_positions();
+  const std::set<int> endo(corners.node_set("endo").begin(), corners.node_set("endo").end());
+  PressureLoad load;
+  load.pressure_pa = pressure_pa;
+  for (size_t f = 0; f < mesh->boundary_faces().size(); ++f) {
+    const auto& n = mesh->boundary_faces()[f];
+    if (endo.count(n[0]) && endo.count(n[1]) && endo.count(n[2]) && (X.col(n[0]) + X.col(n[1]) + X.col(n[2])).z() < -1e-9)
+      load.faces.push_back(static_cast<int>(f));
+  }
+  p.pressures = {load};
+  p.fixed_dofs.assign(static_cast<size_t>(3 * mesh->num_nodes()), 0);
+  int equator_node = -1;
+  for (int n = 0; n < mesh->num_nodes(); ++n) {
+    const Vec3 x = X.col(n);
+    if (std::abs(x.z()) < 1e-12) p.fixed_dofs[static_cast<size_t>(3 * n + 2)] = 1;
+    if (std::hypot(x.x(), x.y()) < 1e-12) p.fixed_dofs[static_cast<size_t>(3 * n)] = p.fixed_dofs[static_cast<size_t>(3 * n + 1)] = 1;
+    if (std::abs(x.z()) < 1e-12 && equator_node < 0) equator_node = n;
+    if (std::abs(x.norm() - kInner) < 1e-9 * kInner) s.endo_nodes.push_back(n);
+  }
+  p.fixed_dofs[static_cast<size_t>(3 * equator_node + 1)] = 1;
+  return s;
+}
+
+double mean_inner_stretch(const Sphere& s, const Positions& x) {
+  double sum = 0;
+  for (int n : s.endo_nodes) sum += x.col(n).norm();
+  return sum / static_cast<double>(s.endo_nodes.size()) / kInner;
+}
+
+TEST(NewtonStatic, TheThickSphereFollowsItsClosedFormPressureStretch) {
+  const double lambda = 1.25;
+  const double p = sphere_pressure(lambda);
+  const Sphere s = sphere(2, p);
+  Positions x;
+  Eigen::VectorXd pr;
+  NewtonSettings settings;
+  settings.load_steps = 4;
+  const NewtonReport r = solve_static(s.problem, x, pr, settings);
+  ASSERT_TRUE(r.converged) << r.message;
+  // The inner radius's change within 1% of the closed form's.
+  EXPECT_NEAR((mean_inner_stretch(s, x) - 1) / (lambda - 1), 1.0, 0.01) << "pressure " << p << " Pa";
+}
+
+TEST(NewtonStatic, ALoadBeyondTheLimitPointIsReportedWithTheLoadFactorReached) {
+  // The closed form's pressure maximum (thick sphere inflation limit).
+  double p_max = 0;
+  for (double l = 1.0; l < 4.0; l += 1e-4) p_max = std::max(p_max, sphere_pressure(l));
+  const double applied = 1.25 * p_max;
+  const Sphere s = sphere(2, applied);
+  Positions x;
+  Eigen::VectorXd pr;
+  NewtonSettings settings;
+  settings.load_steps = 8;
+  settings.max_cutbacks = 12;
+  const NewtonReport r = solve_static(s.problem, x, pr, settings);
+  EXPECT_FALSE(r.converged);
+  EXPECT_NE(r.message.find("cannot be carried"), std::string::npos) << r.message;
+  EXPECT_TRUE(x.allFinite());
+  // Newton stops short of the limit (the tangent turns singular there): within 5% below it.
+  EXPECT_GT(r.load_factor * applied, 0.95 * p_max);
+  EXPECT_LT(r.load_factor * applied, 1.02 * p_max);
+}
+
+TEST(NewtonStatic, AFollowerPressureCantileverConvergesQuadratically) {
+  BoxSpec spec;
+  spec.size_m = Vec3(0.010, 0.001, 0.001);
+  spec.cells = {10, 1, 1};
+  auto mesh = std::make_shared<const ElementMesh>(make_box(spec), 2);
+  Problem p(mesh);
+  LawParameters law;
+  law.kind = LawKind::guccione;
+  law.incompressible = true;
+  p.region_laws = {law};
+  p.element_region.assign(static_cast<size_t>(mesh->num_elements()), 0);
+  PressureLoad load;
+  load.pressure_pa = 4.0;
+  const Positions& X = mesh->rest_positions();
+  for (size_t f = 0; f < mesh->boundary_faces().size(); ++f) {
+    const auto& n = mesh->boundary_faces()[f];
+    if ((X.col(n[0]) + X.col(n[1]) + X.col(n[2])).z() < 1e-12) load.faces.push_back(static_cast<int>(f));
+  }
+  p.pressures = {load};
+  p.fixed_dofs.assign(static_cast<size_t>(3 * mesh->num_nodes()), 0);
+  for (int n = 0; n < mesh->num_nodes(); ++n)
+    if (X(0, n) < 1e-12) p.fixed_dofs[static_cast<size_t>(3 * n)] = p.fixed_dofs[static_cast<size_t>(3 * n + 1)] = p.fixed_dofs[static_cast<size_t>(3 * n + 2)] = 1;
+  Positions x;
+  Eigen::VectorXd pr;
+  NewtonSettings settings;
+  settings.load_steps = 1;
+  settings.tolerance = 1e-12;
+  const NewtonReport r = solve_static(p, x, pr, settings);
+  ASSERT_TRUE(r.converged) << r.message;
+  const std::vector<double>& h = r.residual_history;
+  ASSERT_GE(h.size(), 3u);
+  // Quadratic convergence: once the residual is small, each iteration squares it (up to a
+  // constant): log r_{k+1} / log r_k approaches 2.
+  bool quadratic = false;
+  for (size_t k = 0; k + 1 < h.size(); ++k)
+    if (h[k] < 1e-2 && h[k + 1] > 1e-15 && std::log(h[k + 1]) / std::log(h[k]) > 1.7) quadratic = true;
+  EXPECT_TRUE(quadratic) << "residual history: " << ::testing::PrintToString(h);
+  // The tip moves up by millimetres (the benchmark's order of magnitude).
+  EXPECT_GT(x(2, mesh->num_corner_nodes() - 1) - X(2, mesh->num_corner_nodes() - 1), 1e-3);
+}
+
+}  // namespace
+}  // namespace fiberfem::core::hyperelastic
