@@ -104,6 +104,7 @@ ElementMesh::ElementMesh(const TetMesh& corners, const std::vector<std::array<in
                                 std::to_string(corners.num_elements()) + " tetrahedra");
   if (!edge_positions.allFinite()) throw std::invalid_argument("element mesh: non-finite edge node position");
   edge_ends_.assign(static_cast<size_t>(num_edges), {-1, -1});
+  std::vector<int> first_user(static_cast<size_t>(num_edges), -1);  // element that placed each edge node
   for (size_t e = 0; e < elements.size(); ++e) {
     const std::array<int, 10>& in = elements[e];
     const std::string name = "element mesh: element " + std::to_string(e);
@@ -114,15 +115,20 @@ ElementMesh::ElementMesh(const TetMesh& corners, const std::vector<std::array<in
     EdgeTable local;
     for (size_t k = 0; k < kTetEdges.size(); ++k) {
       const int node = in[4 + k];
+      const std::string which = name + ": its node " + std::to_string(4 + k) + " (of 0..9, edge node " + std::to_string(node);
       const Edge pair = edge_of(in[static_cast<size_t>(kTetEdges[k][0])], in[static_cast<size_t>(kTetEdges[k][1])]);
       if (node < num_corners_ || node >= num_corners_ + num_edges)
-        throw std::invalid_argument(name + ": edge node " + std::to_string(node) + " is out of range [" +
-                                    std::to_string(num_corners_) + ", " + std::to_string(num_corners_ + num_edges) + ")");
-      std::array<int, 2>& ends = edge_ends_[static_cast<size_t>(node - num_corners_)];
-      if (ends[0] < 0) ends = {pair.first, pair.second};
+        throw std::invalid_argument(which + ") is out of range [" + std::to_string(num_corners_) + ", " +
+                                    std::to_string(num_corners_ + num_edges) + ")");
+      const size_t i = static_cast<size_t>(node - num_corners_);
+      std::array<int, 2>& ends = edge_ends_[i];
+      if (ends[0] < 0) {
+        ends = {pair.first, pair.second};
+        first_user[i] = static_cast<int>(e);
+      }
       if (Edge{ends[0], ends[1]} != pair)
-        throw std::invalid_argument(name + ": edge node " + std::to_string(node) + " sits on edge " + pair_text(pair) +
-                                    " here but on edge " + pair_text({ends[0], ends[1]}) + " in an earlier element");
+        throw std::invalid_argument(which + ") sits on corners " + pair_text(pair) + " here but on corners " +
+                                    pair_text({ends[0], ends[1]}) + " in element " + std::to_string(first_user[i]));
       local.emplace_back(pair, node);
     }
     std::sort(local.begin(), local.end());
@@ -138,8 +144,11 @@ ElementMesh::ElementMesh(const TetMesh& corners, const std::vector<std::array<in
   const EdgeTable table = table_of(edge_ends_, num_corners_);
   for (size_t i = 1; i < table.size(); ++i)
     if (table[i].first == table[i - 1].first)
-      throw std::invalid_argument("element mesh: edge " + pair_text(table[i].first) + " has two edge nodes, " +
-                                  std::to_string(table[i - 1].second) + " and " + std::to_string(table[i].second));
+      throw std::invalid_argument("element mesh: the edge between corners " + pair_text(table[i].first) +
+                                  " has two edge nodes, " + std::to_string(table[i - 1].second) + " (in element " +
+                                  std::to_string(first_user[static_cast<size_t>(table[i - 1].second - num_corners_)]) +
+                                  ") and " + std::to_string(table[i].second) + " (in element " +
+                                  std::to_string(first_user[static_cast<size_t>(table[i].second - num_corners_)]) + ")");
   rest_.resize(3, num_corners_ + num_edges);
   rest_.leftCols(num_corners_) = corners.rest_positions();
   rest_.rightCols(num_edges) = edge_positions;
