@@ -8,6 +8,7 @@
 #include <fstream>
 #include <istream>
 #include <map>
+#include <numeric>
 #include <ostream>
 #include <set>
 #include <sstream>
@@ -104,15 +105,68 @@ void expect(Lines& lines, const std::string& tag) {
 
 }  // namespace
 
-core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scale) {
+namespace {
+
+// What a gmsh file holds, before it becomes a mesh: nodes in file order, tetrahedra of one
+// order (4 or 10 nodes, gmsh order; indices into `points`), node sets by physical tag.
+struct GmshContent {
+  std::vector<core::Vec3> points;
+  std::vector<long> ids;  // the file's node id of each point
+  int order = 0;  // 1 or 2 once a tetrahedron is read
+  std::vector<std::array<int, 10>> cells;
+  std::vector<int> regions;
+  std::map<int, std::string> physical_names;       // tag -> name (dim < 3)
+  std::map<int, std::set<int>> nodes_of_physical;  // tag -> nodes of lower-dim elements
+};
+
+// Nodes per element type: point, 2- and 3-node lines, 3- and 6-node triangles, 4- and
+// 10-node tetrahedra. Other types (hexahedra, quadrangles, ...) are ignored unless they
+// are volumes (below).
+int nodes_of_type(long type) {
+  static const std::map<long, int> kNodes = {{15, 1}, {1, 2}, {8, 3}, {2, 3}, {9, 6}, {4, 4}, {11, 10}};
+  const auto it = kNodes.find(type);
+  return it == kNodes.end() ? 0 : it->second;
+}
+
+// Refuses volume elements that are not tetrahedra of order 1 or 2 (hexahedra 5 and 12,
+// prisms 6 and 13, pyramids 7 and 14, higher-order tetrahedra 29, 30, 31), quadrangles
+// (3, 10), and (when `allow_quadratic` is false) 10-node tetrahedra.
+void check_type(Lines& lines, long type, bool allow_quadratic) {
+  static const std::set<long> kRefused = {3, 5, 6, 7, 10, 12, 13, 14, 29, 30, 31};
+  if (kRefused.count(type))
+    lines.fail("element type " + std::to_string(type) + " is not a tetrahedron of order 1 or 2 (types 4, 11)");
+  if (type == 11 && !allow_quadratic)
+    lines.fail("element type 11 is a 10-node tetrahedron; this reader takes linear ones (type 4): read the file "
+               "with mesh order 2 (mesh.order: 2)");
+}
+
+// Adds a read element: a tetrahedron to the cells (one order per file), any other type to
+// the node sets of its physical tags.
+void add_element(Lines& lines, GmshContent& c, long type, const std::vector<int>& nodes,
+                 const std::vector<int>& physicals, int region) {
+  if (type == 4 || type == 11) {
+    const int order = type == 4 ? 1 : 2;
+    if (c.order != 0 && c.order != order)
+      lines.fail("the file mixes linear (type 4) and 10-node (type 11) tetrahedra");
+    if (region < 0) lines.fail("negative physical tag");
+    c.order = order;
+    std::array<int, 10> cell;
+    cell.fill(-1);
+    std::copy(nodes.begin(), nodes.end(), cell.begin());
+    c.cells.push_back(cell);
+    c.regions.push_back(region);
+  } else {
+    for (int t : physicals) c.nodes_of_physical[t].insert(nodes.begin(), nodes.end());
+  }
+}
+
+GmshContent parse_gmsh(std::istream& in, const std::string& origin, double scale, bool allow_quadratic) {
   if (!(scale > 0 && std::isfinite(scale))) throw MeshFileError(origin + ": scale must be > 0");
   Lines lines(in, origin);
+  GmshContent c;
   std::map<long, int> index_of_id;  // node id -> index
-  std::vector<core::Vec3> points;
-  std::vector<core::Tet> tets;
-  std::vector<int> regions;
-  std::map<int, std::string> physical_names;                 // tag -> name (dim < 3)
-  std::map<int, std::set<int>> nodes_of_physical;            // tag -> nodes of lower-dim elements
+  std::vector<core::Vec3>& points = c.points;
+  std::map<int, std::string>& physical_names = c.physical_names;
   bool have_format = false, have_nodes = false, have_elements = false;
   int major = 0;
   // MSH 4.1: physical tags hang on entities, (dim, entity tag) -> physical tags.
@@ -177,6 +231,7 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
           if (!index_of_id.emplace(ids[static_cast<size_t>(i)], static_cast<int>(points.size())).second)
             lines.fail("node " + std::to_string(ids[static_cast<size_t>(i)]) + " is given twice");
           points.emplace_back(scale * f[0], scale * f[1], scale * f[2]);
+          c.ids.push_back(ids[static_cast<size_t>(i)]);
         }
       }
       if (static_cast<long>(points.size()) != h[1]) lines.fail("the blocks hold " + std::to_string(points.size()) + " nodes, the header says " + std::to_string(h[1]));
@@ -191,10 +246,8 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
         if (bh.size() != 4) lines.fail("expected 'entityDim entityTag elementType numElementsInBlock'");
         const int dim = static_cast<int>(bh[0]), etag = static_cast<int>(bh[1]);
         const long type = bh[2];
-        static const std::map<long, int> kNodes4 = {{15, 1}, {1, 2}, {2, 3}, {4, 4}};
-        const auto it = kNodes4.find(type);
-        if (it == kNodes4.end() && (type == 11 || type == 5 || type == 3))
-          lines.fail("element type " + std::to_string(type) + " is not a linear tetrahedron (use first-order meshes)");
+        check_type(lines, type, allow_quadratic);
+        const int count = nodes_of_type(type);
         const auto ph = entity_physicals.find({dim, etag});
         // Without an $Entities section (as meshio writes) the entity tag is the region tag.
         const int physical = ph != entity_physicals.end() && !ph->second.empty() ? ph->second.front()
@@ -202,22 +255,17 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
                                                                                    : 0;
         for (long i = 0; i < bh[3]; ++i) {
           const std::vector<long> f = fields<long>(lines, lines.need("an element"), "integer");
-          if (it == kNodes4.end()) continue;
-          if (static_cast<long>(f.size()) != 1 + it->second)
-            lines.fail("element type " + std::to_string(type) + " needs " + std::to_string(it->second) + " nodes");
+          if (count == 0) continue;
+          if (static_cast<long>(f.size()) != 1 + count)
+            lines.fail("element type " + std::to_string(type) + " needs " + std::to_string(count) + " nodes");
           std::vector<int> nodes;
-          for (int k = 0; k < it->second; ++k) {
+          for (int k = 0; k < count; ++k) {
             const auto found = index_of_id.find(f[static_cast<size_t>(1 + k)]);
             if (found == index_of_id.end())
               lines.fail("element refers to node " + std::to_string(f[static_cast<size_t>(1 + k)]) + ", which is not in $Nodes");
             nodes.push_back(found->second);
           }
-          if (type == 4) {
-            tets.push_back({nodes[0], nodes[1], nodes[2], nodes[3]});
-            regions.push_back(physical);
-          } else if (ph != entity_physicals.end()) {
-            for (int t : ph->second) nodes_of_physical[t].insert(nodes.begin(), nodes.end());
-          }
+          add_element(lines, c, type, nodes, ph != entity_physicals.end() ? ph->second : std::vector<int>{}, physical);
         }
       }
       expect(lines, "$EndElements");
@@ -234,6 +282,7 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
         if (!index_of_id.emplace(id, static_cast<int>(points.size())).second)
           lines.fail("node " + std::to_string(id) + " is given twice");
         points.emplace_back(scale * f[1], scale * f[2], scale * f[3]);
+        c.ids.push_back(id);
       }
       expect(lines, "$EndNodes");
       have_nodes = true;
@@ -244,31 +293,21 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
         const std::vector<long> f = fields<long>(lines, lines.need("an element"), "integer");
         if (f.size() < 3) lines.fail("expected 'id type ntags tags... nodes...'");
         const long type = f[1], ntags = f[2];
-        static const std::map<long, int> kNodes = {{15, 1}, {1, 2}, {2, 3}, {4, 4}};
-        const auto it = kNodes.find(type);
         if (ntags < 0 || ntags > static_cast<long>(f.size()) - 3) lines.fail("bad tag count");
-        if (it == kNodes.end()) {
-          if (type == 11 || type == 5 || type == 3)
-            lines.fail("element type " + std::to_string(type) + " is not a linear tetrahedron (use first-order meshes)");
-          continue;  // other lower-dimensional types are ignored
-        }
-        if (static_cast<long>(f.size()) != 3 + ntags + it->second)
-          lines.fail("element type " + std::to_string(type) + " needs " + std::to_string(it->second) + " nodes");
+        check_type(lines, type, allow_quadratic);
+        const int count = nodes_of_type(type);
+        if (count == 0) continue;  // other lower-dimensional types are ignored
+        if (static_cast<long>(f.size()) != 3 + ntags + count)
+          lines.fail("element type " + std::to_string(type) + " needs " + std::to_string(count) + " nodes");
         const int physical = ntags > 0 ? static_cast<int>(whole(lines, static_cast<double>(f[3]), "the physical tag", -kIntMax, kIntMax)) : 0;
         std::vector<int> nodes;
-        for (int k = 0; k < it->second; ++k) {
+        for (int k = 0; k < count; ++k) {
           const long id = f[static_cast<size_t>(3 + ntags + k)];
           const auto found = index_of_id.find(id);
           if (found == index_of_id.end()) lines.fail("element refers to node " + std::to_string(id) + ", which is not in $Nodes");
           nodes.push_back(found->second);
         }
-        if (type == 4) {
-          if (physical < 0) lines.fail("negative physical tag");
-          tets.push_back({nodes[0], nodes[1], nodes[2], nodes[3]});
-          regions.push_back(physical);
-        } else if (ntags > 0) {
-          nodes_of_physical[physical].insert(nodes.begin(), nodes.end());
-        }
+        add_element(lines, c, type, nodes, ntags > 0 ? std::vector<int>{physical} : std::vector<int>{}, physical);
       }
       expect(lines, "$EndElements");
       have_elements = true;
@@ -285,20 +324,109 @@ core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scal
     }
   }
   if (!have_format) throw MeshFileError(origin + ": no $MeshFormat section (not a gmsh file?)");
-  if (!have_elements || tets.empty()) throw MeshFileError(origin + ": no linear tetrahedra (type 4) in the file");
+  if (!have_elements || c.cells.empty())
+    throw MeshFileError(origin + (allow_quadratic ? ": no tetrahedra (type 4 or 11) in the file" : ": no linear tetrahedra (type 4) in the file"));
+  return c;
+}
+
+}  // namespace
+
+namespace {
+
+core::Positions columns(const std::vector<core::Vec3>& points) {
   core::Positions X(3, static_cast<Eigen::Index>(points.size()));
   for (size_t i = 0; i < points.size(); ++i) X.col(static_cast<Eigen::Index>(i)) = points[i];
-  try {
-    core::TetMesh mesh(std::move(X), std::move(tets), std::move(regions));
-    for (const auto& [tag, nodes] : nodes_of_physical) {
-      const auto nm = physical_names.find(tag);
-      mesh.set_node_set(nm != physical_names.end() ? nm->second : "physical " + std::to_string(tag),
-                        std::vector<int>(nodes.begin(), nodes.end()));
+  return X;
+}
+
+// The corner mesh with the file's regions and node sets (restricted to corner nodes: at
+// order 2 the mid-edge nodes of a physical group follow their corners, ElementMesh's
+// fixed_dofs). `index` maps a file point to its corner index, -1 for an edge node.
+core::TetMesh corner_mesh(const GmshContent& c, const std::vector<int>& index, std::vector<core::Vec3> corners) {
+  std::vector<core::Tet> tets;
+  tets.reserve(c.cells.size());
+  for (const auto& cell : c.cells)
+    tets.push_back({index[static_cast<size_t>(cell[0])], index[static_cast<size_t>(cell[1])],
+                    index[static_cast<size_t>(cell[2])], index[static_cast<size_t>(cell[3])]});
+  core::TetMesh mesh(columns(corners), std::move(tets), c.regions);
+  for (const auto& [tag, nodes] : c.nodes_of_physical) {
+    std::vector<int> set;
+    for (int n : nodes)
+      if (index[static_cast<size_t>(n)] >= 0) set.push_back(index[static_cast<size_t>(n)]);
+    std::sort(set.begin(), set.end());
+    const auto nm = c.physical_names.find(tag);
+    mesh.set_node_set(nm != c.physical_names.end() ? nm->second : "physical " + std::to_string(tag), std::move(set));
+  }
+  return mesh;
+}
+
+// Order 2: the nodes in positions 4..9 of a tetrahedron are edge nodes, all others corners
+// (so are nodes no element uses, as at order 1); corners keep their file order and come
+// first, edge nodes follow in file order. A node both corner and edge node is refused;
+// ElementMesh checks that the elements share their edge nodes consistently.
+OrderedMesh build_ordered(const GmshContent& c, const std::string& origin) {
+  std::vector<std::uint8_t> role(c.points.size(), 0);  // bit 0: corner, bit 1: edge node
+  for (const auto& cell : c.cells)
+    for (int k = 0; k < (c.order == 1 ? 4 : 10); ++k) role[static_cast<size_t>(cell[static_cast<size_t>(k)])] |= k < 4 ? 1 : 2;
+  std::vector<int> index(c.points.size(), -1);
+  std::vector<core::Vec3> corners, edges;
+  for (size_t i = 0; i < c.points.size(); ++i) {
+    if (role[i] == 3)
+      throw MeshFileError(origin + ": node " + std::to_string(c.ids[i]) +
+                          " is a corner of one tetrahedron and a mid-edge node of another");
+    if (role[i] == 2) continue;
+    index[i] = static_cast<int>(corners.size());
+    corners.push_back(c.points[i]);
+  }
+  std::vector<int> edge_index(c.points.size(), -1);
+  for (size_t i = 0; i < c.points.size(); ++i)
+    if (role[i] == 2) {
+      edge_index[i] = static_cast<int>(corners.size() + edges.size());
+      edges.push_back(c.points[i]);
     }
-    return mesh;
+  try {
+    core::TetMesh mesh = corner_mesh(c, index, std::move(corners));
+    if (c.order == 1) {
+      core::hyperelastic::ElementMesh elements(mesh, 1);
+      return {std::move(mesh), std::move(elements)};
+    }
+    std::vector<std::array<int, 10>> cells;
+    cells.reserve(c.cells.size());
+    for (const auto& cell : c.cells) {
+      std::array<int, 10> n;
+      for (size_t k = 0; k < 10; ++k) n[k] = k < 4 ? index[static_cast<size_t>(cell[k])] : edge_index[static_cast<size_t>(cell[k])];
+      cells.push_back(n);
+    }
+    try {
+      core::hyperelastic::ElementMesh elements(mesh, cells, columns(edges));
+      return {std::move(mesh), std::move(elements)};
+    } catch (const std::invalid_argument& e) {
+      throw MeshFileError(origin + ": " + e.what() +
+                          " (tetrahedra counted from 0 in file order; nodes from 0, corners in file order, then "
+                          "mid-edge nodes in file order)");
+    }
+  } catch (const MeshFileError&) {
+    throw;
   } catch (const std::invalid_argument& e) {
     throw MeshFileError(origin + ": " + e.what());
   }
+}
+
+}  // namespace
+
+core::TetMesh read_gmsh(std::istream& in, const std::string& origin, double scale) {
+  const GmshContent c = parse_gmsh(in, origin, scale, false);
+  std::vector<int> index(c.points.size());
+  std::iota(index.begin(), index.end(), 0);
+  try {
+    return corner_mesh(c, index, c.points);
+  } catch (const std::invalid_argument& e) {
+    throw MeshFileError(origin + ": " + e.what());
+  }
+}
+
+OrderedMesh read_gmsh_any_order(std::istream& in, const std::string& origin, double scale) {
+  return build_ordered(parse_gmsh(in, origin, scale, true), origin);
 }
 
 namespace {
@@ -584,6 +712,19 @@ core::TetMesh read_mesh(const std::string& path, double scale) {
   std::ifstream f(path);
   if (!f) throw MeshFileError(path + ": cannot open the mesh file");
   return read_gmsh(f, path, scale);
+}
+
+OrderedMesh read_mesh_any_order(const std::string& path, double scale) {
+  const size_t dot = path.rfind('.');
+  if (dot == std::string::npos || path.substr(dot) != ".msh") {
+    core::TetMesh mesh = read_mesh(path, scale);
+    core::hyperelastic::ElementMesh elements(mesh, 1);
+    return {std::move(mesh), std::move(elements)};
+  }
+  if (const std::string bad = input_file_problem(path); !bad.empty()) throw MeshFileError(path + ": cannot open the mesh file: " + bad);
+  std::ifstream f(path);
+  if (!f) throw MeshFileError(path + ": cannot open the mesh file");
+  return read_gmsh_any_order(f, path, scale);
 }
 
 void write_gmsh22(const core::TetMesh& mesh, std::ostream& out) {

@@ -114,7 +114,7 @@ TEST(Gmsh22, MalformedFilesNameTheFileAndLine) {
   expect_error(replace_once(ok, "30 0 1 0", "20 0 1 0"), {"test.msh:13:", "given twice"});
   expect_error(replace_once(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 9 1 50 40 30 99"), {"test.msh:22:", "node 99"});
   expect_error(replace_once(ok, "4 4 2 9 1 50 40 30 20", "4 4 2 9 1 50 40 30"), {"test.msh:22:", "needs 4 nodes"});
-  expect_error(replace_once(ok, "3 4 2 9 1 10 20 40 30", "3 11 2 9 1 10 20 40 30 1 2 3 4 5 6"), {"not a linear tetrahedron"});
+  expect_error(replace_once(ok, "3 4 2 9 1 10 20 40 30", "3 11 2 9 1 10 20 40 30 1 2 3 4 5 6"), {"10-node tetrahedron", "mesh.order: 2"});
   expect_error(replace_once(ok, "$EndNodes", "$EndNodez"), {"test.msh:16:", "$EndNodes"});
   expect_error(ok.substr(0, ok.find("$Elements") + 12), {"unexpected end of file"});
   expect_error(replace_once(ok, "50 0 0 1", "50 0 0 0"), {"test.msh", "degenerate"});  // flat second tet
