@@ -53,7 +53,8 @@ struct LawParameters {
 
   /// Whether the law needs a sheet direction (Holzapfel-Ogden).
   bool needs_sheet() const { return kind == LawKind::holzapfel_ogden; }
-  /// @throws std::invalid_argument naming the field (e.g. "guccione.C must be > 0").
+  /// Checks the fields of `kind` (the other laws' fields are ignored) and the bulk modulus.
+  /// @throws std::invalid_argument naming the scene key (e.g. "material.C must be > 0").
   void validate() const;
 };
 
@@ -65,7 +66,8 @@ struct MaterialAxes {
   Vec3 s = Vec3::UnitY();
   Vec3 n = Vec3::UnitZ();
   /// Axes from a fiber and an optional sheet (made orthogonal to the fiber; any
-  /// orthogonal direction when `sheet` is zero or parallel to the fiber).
+  /// orthogonal direction when `sheet` is zero or parallel to the fiber). Neither needs
+  /// unit length. @throws std::invalid_argument when `fiber` is zero.
   static MaterialAxes from(const Vec3& fiber, const Vec3& sheet = Vec3::Zero());
 };
 
@@ -100,7 +102,8 @@ void add_volumetric_stress(double pi, double dpi_dJ, const Mat3& F, Response& r,
 Mat3 cofactor(const Mat3& F);
 
 /// Adds the active stress of Land et al. 2015: S_a = T_a f0 (x) f0, so P_a = T_a F f0 f0^T,
-/// and its tangent (T_a fixed). T_a in Pa.
+/// and its tangent (T_a fixed). T_a in Pa. The energy is left to the caller (at fixed T_a,
+/// S_a is the derivative of T_a/2 (f0 . C f0 - 1)).
 void add_active_stress(double tension_pa, const Vec3& f0, const Mat3& F, Response& r, bool with_tangent);
 
 }  // namespace fiberfem::core::hyperelastic
