@@ -4,6 +4,7 @@
 
 #include "io/scene_accurate.hpp"
 
+#include "core/hyperelastic/curved_placement.hpp"
 #include "core/hyperelastic/ellipsoid_fibers.hpp"
 #include "core/hyperelastic/quadrature.hpp"
 #include "core/hyperelastic/shape_functions.hpp"
@@ -29,7 +30,7 @@ std::array<int, 3> sorted(const core::Tri& t) {
 std::shared_ptr<const ElementMesh> element_mesh(const Scene& sc) {
   const core::TetMesh& corners = sc.model.mesh;
   if (sc.mesh_order == 2 && sc.lv_ellipsoid)
-    return std::make_shared<const ElementMesh>(corners, 2, core::lv_ellipsoid_edge_placement(*sc.lv_ellipsoid, corners));
+    return std::make_shared<const ElementMesh>(corners, 2, core::hyperelastic::lv_ellipsoid_edge_placement(*sc.lv_ellipsoid, corners));
   return std::make_shared<const ElementMesh>(corners, sc.mesh_order);
 }
 

@@ -27,9 +27,11 @@ MaterialAxes ellipsoid_helix_axes(const LvEllipsoidSpec& s, double endo_deg, dou
   const double rs = s.endo_rs_m + t * (s.epi_rs_m - s.endo_rs_m);
   const double rl = s.endo_rl_m + t * (s.epi_rl_m - s.endo_rl_m);
   const double u = -std::acos(std::clamp(X.z() / rl, -1.0, 1.0));
-  const double v = std::atan2(X.y(), X.x());
+  // x = rs sin(u) cos(v) with sin(u) <= 0: v is the azimuth of -X, not of X.
+  const double v = std::atan2(-X.y(), -X.x());
   const Vec3 dxdu(rs * std::cos(u) * std::cos(v), rs * std::cos(u) * std::sin(v), -rl * std::sin(u));
-  const Vec3 e_v(-std::sin(v), std::cos(v), 0.0);  // d x/d v over its length rs |sin u|
+  // d x/d v = rs sin(u) (-sin v, cos v, 0), and sin(u) <= 0 on the shell.
+  const Vec3 e_v = (std::sin(u) > 0 ? 1.0 : -1.0) * Vec3(-std::sin(v), std::cos(v), 0.0);
   const double alpha = (endo_deg + (epi_deg - endo_deg) * std::clamp(t, 0.0, 1.0)) * M_PI / 180.0;
   const Vec3 fiber = std::sin(alpha) * dxdu.normalized() + std::cos(alpha) * e_v;
   const Vec3 normal(X.x() / (rs * rs), X.y() / (rs * rs), X.z() / (rl * rl));

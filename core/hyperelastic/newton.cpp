@@ -50,6 +50,8 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
   rep.equations = assembler.num_equations();
   const double fref = assembler.reference_load_norm();
   const double volume = assembler.volume_m3();
+  const double length = std::cbrt(volume);
+  constexpr double kRoundOff = 1e-13;
   // One merit for both kinds of rows: the force rows against the load, the volume rows
   // against the body's volume.
   auto merit = [&](const Eigen::VectorXd& R) {
@@ -127,14 +129,22 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
       ev = assembler.evaluate(xt, pt, target, R, &K);
       rep.assembly_s += since(t0);
       history.push_back(assembler.displacement_norm(R) / fref);
+      // Round-off floor: the update moved no node by more than round-off of the body's
+      // size and the residual stopped falling. No iteration can do better; accept it.
+      const double moved = alpha * delta.head(assembler.num_free_displacements()).lpNorm<Eigen::Infinity>();
+      if (moved <= kRoundOff * length && merit(R) > 0.5 * m0) {
+        converged = true;
+        rep.message = "stopped at the round-off floor (relative residual " + std::to_string(history.back()) + ")";
+        break;
+      }
     }
     if (!converged && ev.finite && ev.inverted_elements == 0 && converged_at(R)) converged = true;
     ++rep.load_steps;
+    rep.residual_history = history;
     if (converged) {
       x = xt;
       p = pt;
       lambda = target;
-      rep.residual_history = history;
       rep.relative_residual = assembler.displacement_norm(R) / fref;
       continue;
     }
