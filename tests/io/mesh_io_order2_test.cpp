@@ -7,6 +7,7 @@
 #include "io/mesh_io.hpp"
 
 #include "core/hyperelastic/shape_functions.hpp"
+#include "io/gmsh_test_files.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -24,64 +25,27 @@ namespace fio = fiberfem::io;
 namespace core = fiberfem::core;
 namespace hyper = fiberfem::core::hyperelastic;
 using core::Vec3;
+using fiberfem::testing::kTwoTets;
+using fiberfem::testing::kTwoTets41;
 using fiberfem::testing::replace_once;
 
 namespace {
 
-// The two tetrahedra of mesh_io_test's kTwoTets (mm; a bipyramid split at z = 0, the first
-// given inverted), now with their 9 edge nodes 101..109 at the midpoints, except 101 on
-// edge 10-20, moved outwards to (0.55, 0, -0.55); the shared face as a 6-node triangle in
-// physical group "base", and a 3-node line in group 0.
-const char* kTwoQuadraticTets = R"($MeshFormat
-2.2 0 8
-$EndMeshFormat
-$PhysicalNames
-2
-2 7 "base"
-3 9 "tissue"
-$EndPhysicalNames
-$Nodes
-14
-10 0 0 -1
-20 1 0 0
-30 0 1 0
-40 -1 -1 0
-50 0 0 1
-101 0.55 0 -0.55
-102 0 -0.5 0
-103 -0.5 -0.5 -0.5
-104 0 0.5 -0.5
-105 -0.5 0 0
-106 0.5 0.5 0
-107 -0.5 -0.5 0.5
-108 0 0.5 0.5
-109 0.5 0 0.5
-$EndNodes
-$Elements
-4
-1 8 2 0 1 20 30 106
-2 9 2 7 1 20 30 40 106 105 102
-3 11 2 9 1 10 20 40 30 101 102 103 104 105 106
-4 11 2 9 1 50 40 30 20 107 105 108 109 106 102
-$EndElements
-)";
+// kTwoTets (mm; a bipyramid split at z = 0, the first tetrahedron given inverted) at
+// order 2: its 9 edge nodes 101..109 at the midpoints, except 101 on edge 10-20, moved
+// outwards to (0.55, 0, -0.55); the shared face as a 6-node triangle in physical group
+// "base", and a 3-node line in group 0. Lines 30 and 31 are the tetrahedra.
+const std::string kTwoQuadraticTets = replace_once(
+    replace_once(replace_once(kTwoTets, "$Nodes\n5\n", "$Nodes\n14\n"), "50 0 0 1\n",
+                 "50 0 0 1\n101 0.55 0 -0.55\n102 0 -0.5 0\n103 -0.5 -0.5 -0.5\n104 0 0.5 -0.5\n105 -0.5 0 0\n"
+                 "106 0.5 0.5 0\n107 -0.5 -0.5 0.5\n108 0 0.5 0.5\n109 0.5 0 0.5\n"),
+    "1 1 2 0 1 20 30\n2 2 2 7 1 20 30 40\n3 4 2 9 1 10 20 40 30\n4 4 2 9 1 50 40 30 20\n",
+    "1 8 2 0 1 20 30 106\n2 9 2 7 1 20 30 40 106 105 102\n3 11 2 9 1 10 20 40 30 101 102 103 104 105 106\n"
+    "4 11 2 9 1 50 40 30 20 107 105 108 109 106 102\n");
 
-// The same in MSH 4.1: entities carry the physical tags, nodes and elements come in blocks
-// (nodes in another order than the 2.2 file).
-const char* kTwoQuadraticTets41 = R"($MeshFormat
-4.1 0 8
-$EndMeshFormat
-$PhysicalNames
-2
-2 7 "base"
-3 9 "tissue"
-$EndPhysicalNames
-$Entities
-0 0 1 1
-1 -1 -1 0 1 1 0 1 7 0
-1 -1 -1 -1 1 1 1 1 9 1 1
-$EndEntities
-$Nodes
+// The same in MSH 4.1: kTwoTets41's entities, then nodes and elements in blocks (nodes in
+// another order than the 2.2 file).
+const std::string kTwoQuadraticTets41 = std::string(kTwoTets41).substr(0, std::string(kTwoTets41).find("$Nodes")) + R"($Nodes
 2 14 10 109
 2 1 0 6
 20
@@ -124,45 +88,13 @@ $Elements
 $EndElements
 )";
 
-// The linear file with the same corners (mesh_io_test's kTwoTets).
-const char* kTwoLinearTets = R"($MeshFormat
-2.2 0 8
-$EndMeshFormat
-$PhysicalNames
-2
-2 7 "base"
-3 9 "tissue"
-$EndPhysicalNames
-$Nodes
-5
-10 0 0 -1
-20 1 0 0
-30 0 1 0
-40 -1 -1 0
-50 0 0 1
-$EndNodes
-$Elements
-4
-1 1 2 0 1 20 30
-2 2 2 7 1 20 30 40
-3 4 2 9 1 10 20 40 30
-4 4 2 9 1 50 40 30 20
-$EndElements
-)";
-
 fio::OrderedMesh read_any(const std::string& text, const std::string& origin = "q.msh") {
   std::istringstream in(text);
   return fio::read_gmsh_any_order(in, origin);
 }
 
 void expect_error(const std::string& text, std::initializer_list<std::string> fragments) {
-  try {
-    read_any(text);
-    ADD_FAILURE() << "expected a MeshFileError for:\n" << text;
-  } catch (const fio::MeshFileError& e) {
-    const std::string msg = e.what();
-    for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << msg << "' lacks '" << f << "'";
-  }
+  fiberfem::testing::expect_mesh_error([&] { read_any(text); }, text, fragments);
 }
 
 // Per element, the positions of its nodes (gmsh order), for comparing two readings whose
@@ -177,7 +109,7 @@ std::vector<Eigen::Matrix<double, 3, 10>> element_nodes(const hyper::ElementMesh
 
 TEST(GmshOrder2, HandWrittenFileGivesTheElementsItDescribes) {
   const fio::OrderedMesh q = read_any(kTwoQuadraticTets);
-  std::istringstream lin(kTwoLinearTets);
+  std::istringstream lin(kTwoTets);
   const core::TetMesh linear = fio::read_gmsh(lin, "l.msh");
   // The corner mesh is the linear file's mesh: same nodes, tetrahedra (element 0
   // reoriented), regions and node sets (the groups' mid-edge nodes left out).
@@ -232,8 +164,8 @@ TEST(GmshOrder2, Version41GivesTheSameElements) {
 }
 
 TEST(GmshOrder2, LinearFilesReadAtOrderOne) {
-  const fio::OrderedMesh q = read_any(kTwoLinearTets);
-  std::istringstream lin(kTwoLinearTets);
+  const fio::OrderedMesh q = read_any(kTwoTets);
+  std::istringstream lin(kTwoTets);
   const core::TetMesh linear = fio::read_gmsh(lin, "l.msh");
   EXPECT_EQ(q.elements.order(), 1);
   EXPECT_EQ(q.corners.rest_positions(), linear.rest_positions());

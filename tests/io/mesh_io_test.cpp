@@ -4,6 +4,7 @@
 #include "io/mesh_io.hpp"
 
 #include "core/box_generator.hpp"
+#include "io/gmsh_test_files.hpp"
 #include "test_support.hpp"
 
 #include <algorithm>
@@ -19,34 +20,9 @@ using core::Vec3;
 
 namespace {
 
+using fiberfem::testing::kTwoTets;
+using fiberfem::testing::kTwoTets41;
 using fiberfem::testing::replace_once;
-
-// Two tetrahedra sharing the face (2, 3, 4) of a unit-ish bipyramid, in millimetres, with
-// non-contiguous node ids, a named physical surface group and a line element to ignore.
-const char* kTwoTets = R"($MeshFormat
-2.2 0 8
-$EndMeshFormat
-$PhysicalNames
-2
-2 7 "base"
-3 9 "tissue"
-$EndPhysicalNames
-$Nodes
-5
-10 0 0 -1
-20 1 0 0
-30 0 1 0
-40 -1 -1 0
-50 0 0 1
-$EndNodes
-$Elements
-4
-1 1 2 0 1 20 30
-2 2 2 7 1 20 30 40
-3 4 2 9 1 10 20 40 30
-4 4 2 9 1 50 40 30 20
-$EndElements
-)";
 
 core::TetMesh read(const std::string& text, double scale = 1.0) {
   std::istringstream in(text);
@@ -54,13 +30,7 @@ core::TetMesh read(const std::string& text, double scale = 1.0) {
 }
 
 void expect_error(const std::string& text, std::initializer_list<std::string> fragments) {
-  try {
-    read(text);
-    ADD_FAILURE() << "expected a MeshFileError for:\n" << text;
-  } catch (const fio::MeshFileError& e) {
-    const std::string msg = e.what();
-    for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << msg << "' lacks '" << f << "'";
-  }
+  fiberfem::testing::expect_mesh_error([&] { read(text); }, text, fragments);
 }
 
 }  // namespace
@@ -132,43 +102,7 @@ TEST(Gmsh22, MalformedFilesNameTheFileAndLine) {
 // The same two tetrahedra in MSH 4.1 (entities carry the physical tags; node and element
 // blocks): the same mesh as the 2.2 file.
 TEST(Gmsh41, SameMeshAsTheVersion22File) {
-  const std::string v41 = R"($MeshFormat
-4.1 0 8
-$EndMeshFormat
-$PhysicalNames
-2
-2 7 "base"
-3 9 "tissue"
-$EndPhysicalNames
-$Entities
-0 0 1 1
-1 -1 -1 0 1 1 0 1 7 0
-1 -1 -1 -1 1 1 1 1 9 1 1
-$EndEntities
-$Nodes
-2 5 10 50
-2 1 0 3
-20
-30
-40
-1 0 0 0
-0 1 0
--1 -1 0
-3 1 0 2
-10
-50
-0 0 -1
-0 0 1
-$EndNodes
-$Elements
-2 3 2 4
-2 1 2 1
-2 20 30 40
-3 1 4 2
-3 10 20 40 30
-4 50 40 30 20
-$EndElements
-)";
+  const std::string v41 = kTwoTets41;
   std::istringstream a(kTwoTets), b(v41);
   const core::TetMesh m2 = fio::read_gmsh(a, "v22.msh", 1e-3), m4 = fio::read_gmsh(b, "v41.msh", 1e-3);
   // Nodes come in a different order: compare through positions.
