@@ -33,6 +33,8 @@ struct NewtonReport {
   std::vector<double> residual_history;  ///< |R_u| / |f_ref| after each iteration of the last increment.
   double assembly_s = 0;              ///< Wall time in residual and tangent evaluations, s.
   double factor_s = 0;                ///< Wall time in factorisations and solves, s.
+  int factorisations = 0;             ///< Tangents factorised (the others solved on a lagged factor).
+  int krylov_iterations = 0;          ///< BiCGSTAB iterations on lagged factors.
   int equations = 0;                  ///< Unknowns of the linear systems.
   std::string message;
 };

@@ -1,0 +1,45 @@
+#pragma once
+/// @file The linear solves of Newton's method on the accurate tier: a sparse LU of the
+/// tangent (UMFPACK when built with it), reused while it still preconditions later tangents
+/// well. A solve first tries BiCGSTAB on the new tangent preconditioned by the last factor,
+/// to the forcing tolerance Newton asks for; only when that does not converge within
+/// kMaxKrylovIterations is the tangent factorised again. Near a converged state the tangent
+/// barely changes, so most iterations cost a few triangular solves instead of a
+/// factorisation.
+
+#include "core/hyperelastic/assembly.hpp"
+
+#include <memory>
+
+namespace fiberfem::core::hyperelastic {
+
+class TangentSolver {
+ public:
+  /// Iterations of BiCGSTAB on a lagged factor before the tangent is factorised afresh.
+  static constexpr int kMaxKrylovIterations = 12;
+
+  TangentSolver();
+  ~TangentSolver();
+  TangentSolver(const TangentSolver&) = delete;
+  TangentSolver& operator=(const TangentSolver&) = delete;
+
+  /// Solves K delta = R to relative residual `forcing` (in (0, 1); a fresh factor solves
+  /// exactly). `fresh` forces a new factorisation. @return false when the tangent is
+  /// singular (no factor) or the answer is not finite.
+  bool solve(const SparseMatrix& K, const Eigen::VectorXd& R, double forcing, bool fresh, Eigen::VectorXd& delta);
+
+  int factorisations() const { return factorisations_; }
+  int krylov_iterations() const { return krylov_iterations_; }
+  double seconds() const { return seconds_; }
+
+ private:
+  struct Factor;
+  bool factorise(const SparseMatrix& K);
+  std::unique_ptr<Factor> factor_;
+  bool have_factor_ = false;
+  int factorisations_ = 0;
+  int krylov_iterations_ = 0;
+  double seconds_ = 0;
+};
+
+}  // namespace fiberfem::core::hyperelastic

@@ -1,0 +1,139 @@
+// Scenes on the accurate tier (docs/scenes.md): material.law and its constants, mesh.order,
+// the Newton keys; the linear material of a law's small-strain limit against the closed
+// form of REFERENCES.md; the problem built for the solver; a bad key named in the error.
+
+#include "io/scene.hpp"
+#include "io/scene_accurate.hpp"
+#include "io/scene_sections.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+namespace fiberfem::io {
+namespace {
+
+const std::string kBeam = R"(name: law-beam
+mesh: {generator: box, size: [0.010, 0.001, 0.001], cells: [4, 1, 1], order: 2}
+regions:
+  - name: myocardium
+    material: {law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0, incompressible: true, density: 1000.0}
+fixed:
+  - plane: {axis: x, value: 0.0}
+loads:
+  tractions:
+    - on: {plane: {axis: z, value: 0.0}}
+      pressure: 4.0
+      follower: true
+solver: {mode: static, load_steps: 3, quadrature: 11, newton: {tolerance: 1.0e-8, max_iterations: 12, line_search: false}}
+)";
+
+std::string with(std::string text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return text.replace(at, from.size(), to);
+}
+
+void expect_error(const std::string& yaml, const std::string& fragment) {
+  try {
+    const Scene s = parse_scene(yaml, "test.yaml");
+    accurate_problem(s);
+    ADD_FAILURE() << "expected an error mentioning " << fragment;
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+
+TEST(SceneLaws, AGuccioneBeamBecomesTheProblemItDescribes) {
+  const Scene s = parse_scene(kBeam, "test.yaml");
+  ASSERT_TRUE(s.accurate());
+  EXPECT_EQ(s.mesh_order, 2);
+  const AccurateProblem ap = accurate_problem(s);
+  const auto& law = ap.problem->region_laws.at(0);
+  EXPECT_EQ(law.kind, core::hyperelastic::LawKind::guccione);
+  EXPECT_DOUBLE_EQ(law.guccione_c_pa, 2000.0);
+  EXPECT_DOUBLE_EQ(law.guccione_b_fs, 4.0);
+  EXPECT_TRUE(law.incompressible);
+  EXPECT_EQ(ap.mesh->order(), 2);
+  EXPECT_EQ(ap.problem->points(), 11);
+  EXPECT_EQ(ap.newton.load_steps, 3);
+  EXPECT_DOUBLE_EQ(ap.newton.tolerance, 1e-8);
+  EXPECT_EQ(ap.newton.max_iterations, 12);
+  EXPECT_FALSE(ap.newton.line_search);
+  ASSERT_EQ(ap.problem->pressures.size(), 1u);
+  EXPECT_TRUE(ap.problem->pressures[0].follower);
+  EXPECT_EQ(ap.problem->pressures[0].faces.size(), 4u * 2u);  // two triangles per cell face
+  // Every node on x = 0 fixed, edge nodes included.
+  int fixed = 0;
+  for (int n = 0; n < ap.mesh->num_nodes(); ++n)
+    if (ap.mesh->rest_positions()(0, n) < 1e-12) fixed += ap.problem->fixed_dofs[static_cast<size_t>(3 * n)];
+  EXPECT_EQ(fixed, 9);  // a 3 x 3 grid of corner and edge nodes on a 1 x 1 face of two triangles
+}
+
+TEST(SceneLaws, TheSmallStrainLimitOfGuccioneIsTheClosedForm) {
+  // REFERENCES.md: E_L = C (b_f + b_t/2), G_L = C b_fs / 2 for the incompressible law; the
+  // shear modulus is free of the bulk part, so it is checked exactly.
+  const Scene s = parse_scene(kBeam, "test.yaml");
+  const core::Mat6& C = s.model.region_materials.at(0).stiffness();
+  EXPECT_NEAR(C(4, 4), 2000.0 * 4.0 / 2, 1e-6);  // yz: fiber (z) with a cross-fiber axis
+  EXPECT_NEAR(C(5, 5), 2000.0 * 4.0 / 2, 1e-6);
+  EXPECT_NEAR(C(3, 3), 2000.0 * 2.0 / 2, 1e-6);  // xy: the cross-fiber plane, G_T = C b_t / 2
+}
+
+TEST(SceneLaws, TheLawIsWrittenBackAsItWasRead) {
+  const Scene s = parse_scene(kBeam, "test.yaml");
+  const Scene again = parse_scene(write_scene_parameters(s.yaml_text, s.parameters), "again.yaml");
+  const auto& a = s.parameters.regions[0].material.law;
+  const auto& b = again.parameters.regions[0].material.law;
+  ASSERT_TRUE(a && b);
+  EXPECT_EQ(a->kind, b->kind);
+  EXPECT_EQ(a->guccione_c_pa, b->guccione_c_pa);
+  EXPECT_EQ(a->guccione_b_t, b->guccione_b_t);
+  EXPECT_EQ(a->incompressible, b->incompressible);
+  EXPECT_EQ(again.parameters.solver.newton_max_iterations, 12);
+}
+
+TEST(SceneLaws, ACompressibleLawTakesADefaultBulkModulus) {
+  const Scene s = parse_scene(with(kBeam, "incompressible: true", "incompressible: false"), "test.yaml");
+  const auto& law = *s.parameters.regions[0].material.law;
+  EXPECT_NEAR(law.bulk_modulus_pa, kDefaultBulkFactor * 2000.0 * 2.0 / 2, 1e-9);
+  const Scene nh = parse_scene(with(kBeam, "law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0, incompressible: true",
+                                    "law: neo_hookean, E: 3000.0, nu: 0.25"),
+                               "test.yaml");
+  const auto& l = *nh.parameters.regions[0].material.law;
+  EXPECT_NEAR(l.mu_pa, 3000.0 / 2.5, 1e-9);
+  EXPECT_NEAR(l.bulk_modulus_pa, 3000.0 / 1.5, 1e-9);
+}
+
+TEST(SceneLaws, BadInputNamesTheKey) {
+  expect_error(with(kBeam, "law: guccione", "law: mooney"), "'mooney' is not a law");
+  expect_error(with(kBeam, "C: 2000.0", "C: -1.0"), "material.C must be > 0");
+  expect_error(with(kBeam, "b_f: 8.0,", "b_f: 8.0, mu: 3.0,"), "mu");
+  expect_error(with(kBeam, "law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0", "law: neo_hookean"),
+               "neo_hookean needs mu");
+  expect_error(with(kBeam, "law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0", "law: holzapfel_ogden"),
+               "holzapfel_ogden needs a sheet direction");
+  expect_error(with(kBeam, "order: 2", "order: 3"), "mesh.order");
+  expect_error(with(kBeam, "quadrature: 11", "quadrature: 5"), "solver.quadrature");
+  expect_error(with(kBeam, "load_steps: 3", "load_steps: 0"), "solver.load_steps");
+  expect_error(with(kBeam, "tolerance: 1.0e-8", "tolerance: 2.0"), "solver.newton.tolerance");
+  expect_error(with(kBeam, "line_search: false", "line_search: false, damping: 1"), "damping");
+  // A second region without a law.
+  const std::string two = with(kBeam, "regions:\n", "regions:\n  - name: stiff\n    select: {box: [[0, 0, 0], [0.002, 0.001, 0.001]]}\n    material: {E: 1.0e5, nu: 0.3, density: 1000.0}\n");
+  expect_error(two, "regions[0].material: needs a law");
+  expect_error(with(kBeam, "      follower: true\n", "      follower: true\n  point_forces:\n    - at: [0.01, 0, 0]\n      force: [0, 0, 1]\n"),
+               "point forces");
+}
+
+TEST(SceneLaws, HolzapfelOgdenTakesTheSheetOfAUniformField) {
+  const std::string ho = with(with(kBeam, "law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0", "law: holzapfel_ogden"),
+                              "fixed:", "fibers: {uniform: [1, 0, 0], sheet: [1, 1, 0]}\nfixed:");
+  const Scene s = parse_scene(ho, "test.yaml");
+  const AccurateProblem ap = accurate_problem(s);
+  ASSERT_FALSE(ap.problem->axes.empty());
+  EXPECT_NEAR(ap.problem->axes[0].s.dot(core::Vec3::UnitY()), 1.0, 1e-12);  // made orthogonal to the fiber
+  expect_error(with(ho, "sheet: [1, 1, 0]", "sheet: [2, 0, 0]"), "fibers.sheet");
+}
+
+}  // namespace
+}  // namespace fiberfem::io
