@@ -128,6 +128,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   Scene scene(regions_model(top, files, fidelity ? fidelity->refine : 1.0, region_names, parameters, extras));
   scene.mesh_order = extras.order;
   scene.lv_ellipsoid = extras.lv_ellipsoid;
+  scene.file_elements = extras.file_elements;
   scene.region_names = std::move(region_names);
   scene.parameters = std::move(parameters);
   core::Model& model = scene.model;

@@ -29,6 +29,7 @@ std::array<int, 3> sorted(const core::Tri& t) {
 
 std::shared_ptr<const ElementMesh> element_mesh(const Scene& sc) {
   const core::TetMesh& corners = sc.model.mesh;
+  if (sc.mesh_order == 2 && sc.file_elements) return sc.file_elements;
   if (sc.mesh_order == 2 && sc.lv_ellipsoid)
     return std::make_shared<const ElementMesh>(corners, 2, core::hyperelastic::lv_ellipsoid_edge_placement(*sc.lv_ellipsoid, corners));
   return std::make_shared<const ElementMesh>(corners, sc.mesh_order);
@@ -48,7 +49,10 @@ void check_accurate(const Scene& sc) {
     const auto& law = sc.parameters.regions[r].material.law;
     if (!law)
       throw SceneError(sc.name + ": regions[" + std::to_string(r) + "].material: needs a law" +
-                       (sc.mesh_order == 2 ? " (mesh.order 2 runs on the accurate tier)" : " (another region has one)") +
+                       (sc.mesh_order != 2   ? " (another region has one)"
+                        : sc.file_elements ? " (the mesh file has 10-node tetrahedra, which run on the accurate tier; "
+                                             "mesh.order: 1 runs its corner mesh on the real-time tier)"
+                                           : " (mesh.order 2 runs on the accurate tier)") +
                        ": neo_hookean, guccione or holzapfel_ogden");
     if (law->needs_sheet() && sc.sheets.empty())
       throw SceneError(sc.name + ": regions[" + std::to_string(r) +

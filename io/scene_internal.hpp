@@ -3,7 +3,10 @@
 /// conditions and loads, probes, cavities, archive, --set overrides), one file each
 /// (io/scene_*.cpp), as io/scene.cpp's parse_scene calls them. Internal to io.
 
+#include "core/hyperelastic/element_mesh.hpp"
 #include "core/lv_ellipsoid.hpp"
+
+#include <memory>
 #include "io/scene.hpp"
 #include "io/scene_sections.hpp"
 
@@ -51,6 +54,8 @@ YAML::Node flow_vec3(const core::Vec3& v);
 struct MeshExtras {
   int order = 1;
   std::optional<core::LvEllipsoidSpec> lv_ellipsoid;
+  /// A mesh file's 10-node elements (a gmsh file of order 2), with its curved edge nodes.
+  std::shared_ptr<const core::hyperelastic::ElementMesh> file_elements;
 };
 /// mesh: a generator (refined by `refine`) or a file.
 core::TetMesh read_scene_mesh(const CheckedMap& top, SceneFiles& files, double refine, MeshExtras& extras);

@@ -21,17 +21,26 @@ constexpr double kMaxGeneratedCells = 2e6;
 // A generator's cell count times the refinement factor, at least `lo`.
 int refined(int cells, double refine, int lo) { return std::max(lo, static_cast<int>(std::lround(cells * refine))); }
 
-core::TetMesh mesh_file(const CheckedMap& m, SceneFiles& files) {
+// A gmsh file may hold 10-node tetrahedra: its corner mesh, and its elements (with their
+// curved edge nodes) for mesh.order 2, which such a file implies.
+core::TetMesh mesh_file(const CheckedMap& m, SceneFiles& files, MeshExtras& extras) {
   if (m.has("refine")) m.checks().fail(m["refine"], "mesh.refine", "goes with a generator (a mesh file has one resolution)");
   const std::string path = resolve(m.text("file"), files.base_dir);
   files.mesh_file = path;
   const double scale = m.has("scale") ? m.number("scale", 0, HUGE_VAL, true) : 1.0;
   try {
-    if (files.embedded && files.embedded->count(path)) {  // a built-in scene's mesh (gmsh only)
-      std::istringstream in(files.embedded->at(path));
-      return read_gmsh(in, path, scale);
+    OrderedMesh read = [&] {
+      if (files.embedded && files.embedded->count(path)) {  // a built-in scene's mesh (gmsh only)
+        std::istringstream in(files.embedded->at(path));
+        return read_gmsh_any_order(in, path, scale);
+      }
+      return io::read_mesh_any_order(path, scale);
+    }();
+    if (read.elements.order() == 2) {
+      extras.order = 2;
+      extras.file_elements = std::make_shared<const core::hyperelastic::ElementMesh>(std::move(read.elements));
     }
-    return io::read_mesh(path, scale);
+    return std::move(read.corners);
   } catch (const std::invalid_argument& e) {
     m.checks().fail(m["file"], "mesh.file", e.what());
   }
@@ -110,9 +119,13 @@ core::TetMesh read_scene_mesh(const CheckedMap& top, SceneFiles& files, double r
   if (!top.has("mesh")) top.checks().fail(top.node(), "mesh", "missing (a generator or a file)");
   const CheckedMap m(top.checks(), top["mesh"], "mesh",
                      {"generator", "size", "cells", "origin", "file", "scale", "inner", "outer", "base_z", "resolution", "refine", "order"});
-  if (m.has("order")) extras.order = m.integer("order", 1, 2);
   if (m.has("file") == m.has("generator")) m.fail("give exactly one of generator, file");
-  if (m.has("file")) return mesh_file(m, files);
+  if (m.has("file")) {
+    core::TetMesh corners = mesh_file(m, files, extras);
+    if (m.has("order")) extras.order = m.integer("order", 1, 2);
+    return corners;
+  }
+  if (m.has("order")) extras.order = m.integer("order", 1, 2);
   if (m.has("refine")) refine = m.number("refine", 0.05, 20);
   if (m.has("scale")) m.checks().fail(m["scale"], "mesh.scale", "goes with mesh.file");
   const std::string gen = m.text("generator");

@@ -3,6 +3,7 @@
 /// tests/io/mesh_io_order2_test.cpp) and a check of their refusals.
 
 #include "io/mesh_io.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -89,5 +90,17 @@ void expect_mesh_error(F&& read, const std::string& text, std::initializer_list<
     for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << msg << "' lacks '" << f << "'";
   }
 }
+
+// kTwoTets (mm; a bipyramid split at z = 0, the first tetrahedron given inverted) at
+// order 2: its 9 edge nodes 101..109 at the midpoints, except 101 on edge 10-20, moved
+// outwards to (0.55, 0, -0.55); the shared face as a 6-node triangle in physical group
+// "base", and a 3-node line in group 0. Lines 30 and 31 are the tetrahedra.
+inline const std::string kTwoQuadraticTets = replace_once(
+    replace_once(replace_once(kTwoTets, "$Nodes\n5\n", "$Nodes\n14\n"), "50 0 0 1\n",
+                 "50 0 0 1\n101 0.55 0 -0.55\n102 0 -0.5 0\n103 -0.5 -0.5 -0.5\n104 0 0.5 -0.5\n105 -0.5 0 0\n"
+                 "106 0.5 0.5 0\n107 -0.5 -0.5 0.5\n108 0 0.5 0.5\n109 0.5 0 0.5\n"),
+    "1 1 2 0 1 20 30\n2 2 2 7 1 20 30 40\n3 4 2 9 1 10 20 40 30\n4 4 2 9 1 50 40 30 20\n",
+    "1 8 2 0 1 20 30 106\n2 9 2 7 1 20 30 40 106 105 102\n3 11 2 9 1 10 20 40 30 101 102 103 104 105 106\n"
+    "4 11 2 9 1 50 40 30 20 107 105 108 109 106 102\n");
 
 }  // namespace fiberfem::testing

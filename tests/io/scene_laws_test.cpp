@@ -5,9 +5,11 @@
 #include "io/scene.hpp"
 #include "io/scene_accurate.hpp"
 #include "io/scene_sections.hpp"
+#include "io/gmsh_test_files.hpp"
 
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <string>
 
 namespace fiberfem::io {
@@ -133,6 +135,40 @@ TEST(SceneLaws, HolzapfelOgdenTakesTheSheetOfAUniformField) {
   ASSERT_FALSE(ap.problem->axes.empty());
   EXPECT_NEAR(ap.problem->axes[0].s.dot(core::Vec3::UnitY()), 1.0, 1e-12);  // made orthogonal to the fiber
   expect_error(with(ho, "sheet: [1, 1, 0]", "sheet: [2, 0, 0]"), "fibers.sheet");
+}
+
+TEST(SceneLaws, AQuadraticGmshFileKeepsItsCurvedEdgeNodes) {
+  // A gmsh file of 10-node tetrahedra (one edge node moved off its chord): the scene runs on
+  // the file's element mesh at order 2, not on a promotion of its corners.
+  const std::string dir = ::testing::TempDir();
+  {
+    std::ofstream f(dir + "/two.msh");
+    f << fiberfem::testing::kTwoQuadraticTets;
+  }
+  const std::string scene = R"(mesh: {file: two.msh, scale: 0.001}
+regions:
+  - material: {law: neo_hookean, mu: 1000.0, bulk_modulus: 1.0e5, density: 1000.0}
+solver: {mode: static}
+)";
+  const Scene s = parse_scene(scene, "two.yaml", dir);
+  EXPECT_EQ(s.mesh_order, 2);
+  const AccurateProblem ap = accurate_problem(s);
+  ASSERT_EQ(ap.mesh->order(), 2);
+  bool moved = false;  // the node at (0.55, 0, -0.55) mm, off the chord's midpoint (0.5, 0, -0.5)
+  for (int n = ap.mesh->num_corner_nodes(); n < ap.mesh->num_nodes(); ++n)
+    moved = moved || (ap.mesh->rest_positions().col(n) - core::Vec3(0.55e-3, 0, -0.55e-3)).norm() < 1e-12;
+  EXPECT_TRUE(moved);
+  // Without a law, the error says how to run its corners instead.
+  try {
+    parse_scene(with(scene, "law: neo_hookean, mu: 1000.0, bulk_modulus: 1.0e5", "E: 1.0e4, nu: 0.3"), "two.yaml", dir);
+    ADD_FAILURE() << "expected an error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("mesh.order: 1"), std::string::npos) << e.what();
+  }
+  const Scene corners = parse_scene(
+      with(with(scene, "scale: 0.001}", "scale: 0.001, order: 1}"), "law: neo_hookean, mu: 1000.0, bulk_modulus: 1.0e5", "E: 1.0e4, nu: 0.3"),
+      "two.yaml", dir);
+  EXPECT_FALSE(corners.accurate());
 }
 
 }  // namespace
