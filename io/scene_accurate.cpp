@@ -129,6 +129,7 @@ AccurateProblem accurate_problem(const Scene& sc) {
   if (s.newton_tolerance) out.newton.tolerance = *s.newton_tolerance;
   if (s.newton_max_iterations) out.newton.max_iterations = *s.newton_max_iterations;
   if (s.newton_line_search) out.newton.line_search = *s.newton_line_search;
+  if (s.threads) out.newton.threads = *s.threads;
   problem->validate();
   out.problem = std::move(problem);
   return out;

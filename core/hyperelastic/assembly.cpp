@@ -6,9 +6,12 @@
 #include "core/hyperelastic/shape_functions.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+
+#include <omp.h>
 
 namespace fiberfem::core::hyperelastic {
 namespace {
@@ -21,7 +24,7 @@ Mat3 skew(const Vec3& v) {
 
 }  // namespace
 
-Assembler::Assembler(const Problem& problem) : problem_(problem) {
+Assembler::Assembler(const Problem& problem) : problem_(problem), governor_(std::max(1, omp_get_max_threads())) {
   problem.validate();
   const ElementMesh& mesh = *problem.mesh;
   order_ = mesh.order();
@@ -174,7 +177,11 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, dou
   Evaluation ev;
   double energy = 0;
   int inverted = 0;
-#pragma omp parallel reduction(+ : energy, inverted)
+  // Tangent evaluations are the comparable steps the governor measures; residual-only
+  // ones (the line search) run on its current count.
+  const int threads = threads_ > 0 ? threads_ : governor_.threads();
+  const auto t0 = std::chrono::steady_clock::now();
+#pragma omp parallel num_threads(threads) reduction(+ : energy, inverted)
   {
     Eigen::VectorXd Rl(ls);
     Eigen::MatrixXd Kl(ls, ls);
@@ -272,6 +279,8 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, dou
 #pragma omp critical
     R += Rthread;
   }
+  if (threads_ == 0 && K != nullptr)
+    governor_.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), true);
   ev.energy_j = energy;
   ev.inverted_elements = inverted;
   add_faces(x, lambda, R, K);

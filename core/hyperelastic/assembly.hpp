@@ -10,6 +10,7 @@
 /// locks; kept so the convergence tables can show it).
 
 #include "core/hyperelastic/problem.hpp"
+#include "core/thread_governor.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -55,6 +56,9 @@ class Assembler {
   double reference_load_norm() const { return reference_load_; }
   /// Total rest volume, m^3.
   double volume_m3() const { return volume_; }
+  /// Threads of the element loop: N, or 0 for the engine's choice from measured evaluation
+  /// times (core/thread_governor.hpp: fewer where more do not pay, or beside a busy core).
+  void set_threads(int threads) { threads_ = threads; }
 
  private:
   struct PointData {
@@ -82,6 +86,8 @@ class Assembler {
   Eigen::VectorXd body_force_;                   ///< rho g N_a integrated, per free equation, at lambda 1.
   std::vector<int> slots_;                       ///< Per element, local (row, col) -> value index.
   mutable SparseMatrix pattern_;
+  int threads_ = 0;
+  mutable ThreadGovernor governor_;
   int local_size_ = 0;
 };
 

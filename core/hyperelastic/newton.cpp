@@ -26,11 +26,13 @@ void NewtonSettings::validate() const {
   if (!(tolerance > 0 && tolerance < 1)) throw std::invalid_argument("solver.newton.tolerance must be in (0, 1)");
   if (max_iterations < 1) throw std::invalid_argument("solver.newton.max_iterations must be >= 1");
   if (max_cutbacks < 0) throw std::invalid_argument("solver.newton.max_cutbacks must be >= 0");
+  if (threads < 0) throw std::invalid_argument("solver.threads must be >= 0");
 }
 
 NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::VectorXd& p_io, const NewtonSettings& s) {
   s.validate();
-  const Assembler assembler(problem);
+  Assembler assembler(problem);
+  assembler.set_threads(s.threads);
   const ElementMesh& mesh = *problem.mesh;
   if (x_io.cols() == 0) x_io = mesh.rest_positions();
   if (x_io.cols() != mesh.num_nodes()) throw std::invalid_argument("static: initial positions have the wrong node count");
@@ -65,6 +67,7 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
   Eigen::VectorXd dp_last;
   double dlambda_last = 0;
   double lambda = 0, dlambda = 1.0 / s.load_steps;
+  bool singular = false;  // a tangent that could not be factorised
   while (lambda < 1.0 - 1e-14) {
     const double target = std::min(1.0, lambda + dlambda);
     // Predictor: the last increment extrapolated linearly in the load factor (the state
@@ -92,7 +95,10 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
       // Inexact Newton: the linear solve to a forcing tolerance that tightens with the
       // residual keeps the convergence superlinear (Eisenstat and Walker's choice 1 bound).
       const double forcing = std::clamp(merit(R), 1e-12, 1e-2);
-      if (!linear.solve(K, R, forcing, false, delta)) break;
+      if (!linear.solve(K, R, forcing, false, delta)) {
+        singular = true;
+        break;
+      }
       // Backtracking: halve while the step inverts an element, gives a non-finite residual,
       // or multiplies the merit by more than kMaxGrowth (a safeguard, not a descent test:
       // Newton across a large rotation passes through larger residuals on its way).
@@ -151,6 +157,10 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
                     "cut-backs); use more solver.load_steps or a smaller load",
                     lambda, dlambda, rep.cutbacks);
       rep.message = msg;
+      if (singular && lambda == 0)
+        rep.message = "the tangent is singular at the rest state: the body is not held against rigid motion, or "
+                      "linear tetrahedra with material.incompressible (one pressure per element locks them, with about "
+                      "as many pressures as free displacements); use mesh.order 2 or a material.bulk_modulus";
       rep.load_factor = lambda;
       rep.factorisations = linear.factorisations();
       rep.krylov_iterations = linear.krylov_iterations();

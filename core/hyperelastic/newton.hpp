@@ -19,6 +19,7 @@ struct NewtonSettings {
   int max_iterations = 30;     ///< solver.newton.max_iterations per increment, >= 1. Default 30.
   int max_cutbacks = 10;       ///< Halvings of increments over the solve, >= 0. Default 10.
   bool line_search = true;     ///< solver.newton.line_search. Default true.
+  int threads = 0;             ///< solver.threads: element-loop threads, 0 the engine's choice. Default 0.
   /// @throws std::invalid_argument naming the key.
   void validate() const;
 };
