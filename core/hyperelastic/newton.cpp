@@ -161,19 +161,13 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
         rep.message = "the tangent is singular at the rest state: the body is not held against rigid motion, or "
                       "linear tetrahedra with material.incompressible (one pressure per element locks them, with about "
                       "as many pressures as free displacements); use mesh.order 2 or a material.bulk_modulus";
-      rep.load_factor = lambda;
-      rep.factorisations = linear.factorisations();
-      rep.krylov_iterations = linear.krylov_iterations();
-      rep.factor_s = linear.seconds();
-      x_io = x;
-      p_io = p;
-      return rep;
+      break;
     }
     dlambda *= 0.5;
     ++rep.cutbacks;
   }
-  rep.converged = true;
-  rep.load_factor = 1.0;
+  rep.converged = lambda >= 1.0 - 1e-14;
+  rep.load_factor = rep.converged ? 1.0 : lambda;
   rep.factorisations = linear.factorisations();
   rep.krylov_iterations = linear.krylov_iterations();
   rep.factor_s = linear.seconds();
