@@ -4,7 +4,13 @@
 
 #include "service/batch_report.hpp"
 
+#include "core/hyperelastic/dynamic.hpp"
 #include "io/scene_accurate.hpp"
+#include "service/stop_signals.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
 
 #include <chrono>
 #include <cstdio>
@@ -60,6 +66,112 @@ int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out) {
   report["timing"] = {{"wall_s", wall}, {"assembly_s", r.assembly_s}, {"linear_solve_s", r.factor_s}};
   report["probes"] = probes;
   return r.converged ? 0 : 1;
+}
+
+namespace {
+
+// One mass-proportional damping for the body: the accurate tier's step takes a single
+// alpha; stiffness-proportional damping is not available there.
+double mass_damping(const io::Scene& sc) {
+  double alpha = -1;
+  for (size_t r = 0; r < sc.model.region_damping.size(); ++r) {
+    const core::RayleighDamping& d = sc.model.region_damping[r];
+    if (d.stiffness_s != 0)
+      throw std::invalid_argument("regions[" + std::to_string(r) +
+                                  "].damping.stiffness: the accurate tier's time steps take mass damping only");
+    if (alpha >= 0 && d.mass_1_s != alpha)
+      throw std::invalid_argument("regions[" + std::to_string(r) +
+                                  "].damping.mass: the accurate tier's time steps take one mass damping for the body");
+    alpha = d.mass_1_s;
+  }
+  return std::max(alpha, 0.0);
+}
+
+// The loads at time t: each traction at its ramp, the contraction's tension per element.
+core::hyperelastic::Loading loading_at(const io::Scene& sc, double t_s, std::vector<double>& tension) {
+  core::hyperelastic::Loading l;
+  for (const core::SurfaceLoad& load : sc.model.loads.surface_loads)
+    l.pressure_factors.push_back(load.ramp_s > 0 ? std::min(1.0, t_s / load.ramp_s) : 1.0);
+  const core::Contraction& c = sc.model.contraction;
+  if (c.enabled()) {
+    const auto& regions = sc.model.mesh.regions();
+    tension.resize(regions.size());
+    for (size_t e = 0; e < regions.size(); ++e)
+      tension[e] = c.tension(regions[e], c.element_delay_s.empty() ? 0.0 : c.element_delay_s[e], t_s);
+    l.active_tension_pa = &tension;
+  } else {
+    l.active_factor = 0;
+  }
+  return l;
+}
+
+}  // namespace
+
+// A dynamic run on the accurate tier: backward-Euler steps solved by Newton, to the
+// scene's end time, with a status line every fifth of the run.
+int run_dynamic_accurate(const io::Scene& sc, int steps, json& report, std::ostream& out) {
+  char line[512];
+  const auto t0 = std::chrono::steady_clock::now();
+  const io::AccurateProblem ap = io::accurate_problem(sc);
+  core::hyperelastic::DynamicSettings ds;
+  ds.dt_s = sc.settings.dt_s;
+  ds.mass_damping_1_s = mass_damping(sc);
+  ds.newton = ap.newton;
+  core::hyperelastic::DynamicSolver solver(*ap.problem, ds);
+  std::snprintf(line, sizeof line, "dynamic: accurate tier, order %d, %d nodes, %d unknowns, step %.4g s, %d steps\n",
+                ap.mesh->order(), ap.mesh->num_nodes(), solver.totals().equations, ds.dt_s, steps);
+  out << line;
+  const StopSignals stop_signals;  // an interrupted run still writes its report
+  std::vector<double> tension;
+  std::string reason;
+  int done = 0, most_iterations = 0;
+  for (int s = 1; s <= steps && !stop_signals.caught(); ++s) {
+    const core::hyperelastic::DynamicStepReport r = solver.step(loading_at(sc, s * ds.dt_s, tension));
+    if (!r.converged) {
+      reason = "step " + std::to_string(s) + " at t = " + std::to_string(s * ds.dt_s) + " s: " + r.message;
+      break;
+    }
+    ++done;
+    most_iterations = std::max(most_iterations, r.iterations);
+    if (steps >= 5 && s % (steps / 5) != 0 && s != steps) continue;
+    const core::Vec3 u = sc.probes.empty() ? core::Vec3::Zero() : io::accurate_probe_displacement(*ap.mesh, sc.probes[0], solver.positions());
+    std::snprintf(line, sizeof line, "t=%7.3f s  step %5d/%d  %s%s%.3e m  Newton %d\n", solver.time_s(), s, steps,
+                  sc.probes.empty() ? "" : sc.probes[0].name.c_str(), sc.probes.empty() ? "|u| n/a " : " |u| ", u.norm(),
+                  r.iterations);
+    out << line << std::flush;
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const core::hyperelastic::NewtonReport totals = solver.totals();
+  json probes = json::array();
+  for (const io::Probe& pr : sc.probes) {
+    const core::Vec3 u = io::accurate_probe_displacement(*ap.mesh, pr, solver.positions());
+    std::snprintf(line, sizeof line, "probe %s: displacement [%+.6e, %+.6e, %+.6e] m (|u| %.6e m)\n", pr.name.c_str(), u.x(),
+                  u.y(), u.z(), u.norm());
+    out << line;
+    probes.push_back({{"name", pr.name}, {"rest_m", vec_json(pr.point_m)}, {"final_m", vec_json(pr.point_m + u)}, {"displacement_m", vec_json(u)}});
+  }
+  const bool completed = done == steps;
+  std::snprintf(line, sizeof line,
+                "dynamic: %s, %d of %d steps in %.2f s (%.1f steps/s), %d Newton iterations (at most %d in a step), %d "
+                "factorisations\n",
+                completed ? "completed" : (reason.empty() ? "interrupted" : "FAILED"), done, steps, wall, done / std::max(wall, 1e-9),
+                totals.iterations, most_iterations, totals.factorisations);
+  out << line;
+  if (!reason.empty()) out << "dynamic: " << reason << "\n";
+  report["status"] = completed ? "completed" : (reason.empty() ? "interrupted" : "failed");
+  report["reason"] = reason;
+  report["dynamic"] = {{"tier", "accurate"},
+                       {"order", ap.mesh->order()},
+                       {"unknowns", totals.equations},
+                       {"steps", done},
+                       {"time_s", solver.time_s()},
+                       {"newton_iterations", totals.iterations},
+                       {"most_newton_iterations", most_iterations},
+                       {"factorisations", totals.factorisations},
+                       {"krylov_iterations", totals.krylov_iterations}};
+  report["timing"] = {{"wall_s", wall}, {"assembly_s", totals.assembly_s}, {"linear_solve_s", totals.factor_s}};
+  report["probes"] = probes;
+  return completed ? 0 : 1;
 }
 
 }  // namespace fiberfem::service::detail

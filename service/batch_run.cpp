@@ -226,12 +226,14 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                 quality.min_dihedral_deg, quality.max_dihedral_deg, is_static ? "static" : "dynamic");
   out << line << std::flush;
   for (const std::string& w : sc.warnings) out << "fiberfem: warning: " << w << "\n";
-  if (sc.accurate() && !is_static)
+  if (sc.accurate() && !is_static && (!o.resume.empty() || o.archive.enabled || o.compare_static))
     throw std::invalid_argument("run: scene '" + sc.name +
-                                "' is on the accurate tier (material.law or mesh.order 2), which solves static problems "
-                                "(solver.mode: static or --static); its dynamic runs are not available");
+                                "' is on the accurate tier (material.law or mesh.order 2): its dynamic runs are not "
+                                "recorded, resumed or compared with a static solve yet");
   json report = detail::report_head(sc, o, quality, is_static);
-  const int rc = is_static ? run_static(sc, report, out) : run_dynamic(sc, o, report, out);
+  const int rc = is_static         ? run_static(sc, report, out)
+                 : sc.accurate()   ? detail::run_dynamic_accurate(sc, requested_steps(sc, o), report, out)
+                                   : run_dynamic(sc, o, report, out);
   if (!o.report_path.empty()) {
     detail::write_report(o.report_path, report);
     out << "report: " << o.report_path << "\n";

@@ -73,8 +73,6 @@ Assembler::Assembler(const Problem& problem) : problem_(problem), governor_(std:
   const Positions& X = mesh.rest_positions();
   for (int e = 0; e < ne; ++e) {
     const auto& nodes = mesh.elements()[static_cast<size_t>(e)];
-    const int region = problem.element_region[static_cast<size_t>(e)];
-    const double rho = problem.region_density_kg_m3.empty() ? 0.0 : problem.region_density_kg_m3[static_cast<size_t>(region)];
     for (int q = 0; q < points_; ++q) {
       const TetShape& sh = shapes[static_cast<size_t>(q)];
       Mat3 J0 = Mat3::Zero();
@@ -89,23 +87,37 @@ Assembler::Assembler(const Problem& problem) : problem_(problem), governor_(std:
       pd.dNdX.topRows(nodes_per_element_) = sh.dN.topRows(nodes_per_element_) * J0.inverse();
       pd.dV = rule.weights[static_cast<size_t>(q)] * det;
       volume_ += pd.dV;
-      if (rho != 0 && problem.gravity_m_s2 != Vec3::Zero())
-        for (int a = 0; a < nodes_per_element_; ++a)
-          for (int i = 0; i < 3; ++i) {
-            const int eq = equation_of_dof(3 * nodes[static_cast<size_t>(a)] + i);
-            if (eq >= 0) body_force_(eq) += rho * problem.gravity_m_s2(i) * sh.N(a) * pd.dV;
-          }
     }
   }
   build_pattern();
+  diagonal_slot_.resize(static_cast<size_t>(num_free_u_));
+  for (int eq = 0; eq < num_free_u_; ++eq) {
+    const int* inner = pattern_.innerIndexPtr();
+    const int* at = std::lower_bound(inner + pattern_.outerIndexPtr()[eq], inner + pattern_.outerIndexPtr()[eq + 1], eq);
+    diagonal_slot_[static_cast<size_t>(eq)] = static_cast<int>(at - inner);
+  }
 
+  std::vector<double> densities;
+  for (int e = 0; e < ne; ++e)
+    densities.push_back(problem.region_density_kg_m3.empty()
+                            ? 0.0
+                            : problem.region_density_kg_m3[static_cast<size_t>(problem.element_region[static_cast<size_t>(e)])]);
+  masses_ = std::all_of(densities.begin(), densities.end(), [](double r) { return r > 0; }) ? lumped_masses(mesh, densities)
+                                                                                            : Eigen::VectorXd::Zero(num_nodes_);
+  // Gravity on the lumped masses (rho g times each node's mass): the load that a lumped
+  // mass carries in free fall, so a body falls without deforming (at order 2 the
+  // consistent load would put negative forces on the corners, against positive masses).
+  for (int d = 0; d < 3 * num_nodes_; ++d) {
+    const int eq = free_eq_[static_cast<size_t>(d)];
+    if (eq >= 0) body_force_(eq) = masses_(d / 3) * problem.gravity_m_s2(d % 3);
+  }
   // A load scale for convergence tests: the rest-shape load at factor 1.
   Eigen::VectorXd R = Eigen::VectorXd::Zero(num_equations());
   Eigen::VectorXd ext = -body_force_;
   ext.conservativeResize(num_equations());
   ext.tail(num_pressures_).setZero();
   Eigen::VectorXd faces = Eigen::VectorXd::Zero(num_equations());
-  add_faces(X, 1.0, faces, nullptr);
+  add_faces(X, Loading{}, faces, nullptr);
   double active = 0;
   for (double t : problem.active_tension_pa) active = std::max(active, std::abs(t));
   // Active tension has no external force; its scale is T_a times a face area.
@@ -161,12 +173,12 @@ void Assembler::build_pattern() {
 //   K_ai,bk += dN_a/dX_J A_iJ,kL dN_b/dX_L dV
 // Mixed pressure p = sum_m psi_m p_m (P = P_iso - p J F^-T):
 //   R_m   -= psi_m (J - 1) dV,   K_ai,m = K_m,ai -= Cof_iJ dN_a/dX_J psi_m dV.
-Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, double lambda, Eigen::VectorXd& R,
+Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, const Loading& loading, Eigen::VectorXd& R,
                                SparseMatrix* K) const {
   const ElementMesh& mesh = *problem_.mesh;
   const int ne = mesh.num_elements();
   R.setZero(num_equations());
-  R.head(num_free_u_) -= lambda * body_force_;
+  R.head(num_free_u_) -= loading.body_factor * body_force_;
   if (K != nullptr) {
     if (K->nonZeros() != pattern_.nonZeros() || K->rows() != pattern_.rows()) *K = pattern_;
     std::fill(K->valuePtr(), K->valuePtr() + K->nonZeros(), 0.0);
@@ -192,7 +204,10 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, dou
       const auto& nodes = mesh.elements()[static_cast<size_t>(e)];
       const LawParameters& law =
           problem_.region_laws[static_cast<size_t>(problem_.element_region[static_cast<size_t>(e)])];
-      const double tension = problem_.active_tension_pa.empty() ? 0.0 : lambda * problem_.active_tension_pa[static_cast<size_t>(e)];
+      const double tension = loading.active_tension_pa ? (*loading.active_tension_pa)[static_cast<size_t>(e)]
+                              : problem_.active_tension_pa.empty()
+                                  ? 0.0
+                                  : loading.active_factor * problem_.active_tension_pa[static_cast<size_t>(e)];
       for (int a = 0; a < n; ++a) xe.row(a) = x.col(nodes[static_cast<size_t>(a)]).transpose();
       Rl.setZero();
       if (K != nullptr) Kl.setZero();
@@ -283,7 +298,7 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, dou
     governor_.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), true);
   ev.energy_j = energy;
   ev.inverted_elements = inverted;
-  add_faces(x, lambda, R, K);
+  add_faces(x, loading, R, K);
   ev.finite = R.allFinite();
   return ev;
 }
@@ -292,13 +307,14 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, dou
 // triangle, n = x_xi x x_eta is its outward area vector, and the pressure's force on node a
 // is -p integral N_a n. The residual R = f_int - f_ext gains +p N_a n w per point; for a
 // follower load the tangent gains dR_a/dx_b = p N_a (N_b,eta [x_xi]x - N_b,xi [x_eta]x) w.
-void Assembler::add_faces(const Positions& x, double lambda, Eigen::VectorXd& R, SparseMatrix* K) const {
+void Assembler::add_faces(const Positions& x, const Loading& loading, Eigen::VectorXd& R, SparseMatrix* K) const {
   if (problem_.pressures.empty()) return;
   const ElementMesh& mesh = *problem_.mesh;
   const int nf = triangle_nodes(order_);
   const TriangleRule& rule = triangle_rule(order_ == 1 ? 3 : 6);
-  for (const PressureLoad& load : problem_.pressures) {
-    const double p = lambda * load.pressure_pa;
+  for (size_t i = 0; i < problem_.pressures.size(); ++i) {
+    const PressureLoad& load = problem_.pressures[i];
+    const double p = loading.pressure_factor * (loading.pressure_factors.empty() ? 1.0 : loading.pressure_factors[i]) * load.pressure_pa;
     if (p == 0) continue;
     const Positions& at = load.follower ? x : mesh.rest_positions();
     for (int f : load.faces) {
@@ -334,6 +350,20 @@ void Assembler::add_faces(const Positions& x, double lambda, Eigen::VectorXd& R,
               if (r >= 0 && c >= 0) K->coeffRef(r, c) += Kf(3 * a + i, 3 * b + k);
             }
     }
+  }
+}
+
+// Backward Euler in positions (ACCURATE.md section 4): v1 = (x1 - x0)/h, and
+// M (v1 - v0)/h + alpha M v1 = M (c (x1 - x0) - v0/h) with c = 1/h^2 + alpha/h.
+void Assembler::add_inertia(const Positions& x, const Positions& x0, const Positions& v0, double h_s, double alpha_1_s,
+                            Eigen::VectorXd& R, SparseMatrix* K) const {
+  const double c = 1.0 / (h_s * h_s) + alpha_1_s / h_s;
+  for (int d = 0; d < 3 * num_nodes_; ++d) {
+    const int eq = free_eq_[static_cast<size_t>(d)];
+    if (eq < 0) continue;
+    const double m = masses_(d / 3);
+    R(eq) += m * (c * (x.data()[d] - x0.data()[d]) - v0.data()[d] / h_s);
+    if (K != nullptr) K->valuePtr()[diagonal_slot_[static_cast<size_t>(eq)]] += c * m;
   }
 }
 

@@ -28,6 +28,20 @@ struct Evaluation {
   bool finite = true;           ///< Every residual entry finite.
 };
 
+/// How much of each load acts in one evaluation: a static solve scales them all by one
+/// load factor; a time step takes each at its time.
+struct Loading {
+  double body_factor = 1.0;                ///< Scales gravity.
+  std::vector<double> pressure_factors;    ///< Per PressureLoad (empty: all 1).
+  double pressure_factor = 1.0;            ///< Scales every pressure (times its own factor).
+  /// Active tension per element, Pa, in place of the problem's (nullptr: the problem's
+  /// times active_factor).
+  const std::vector<double>* active_tension_pa = nullptr;
+  double active_factor = 1.0;
+  /// All loads at one load factor.
+  static Loading at_factor(double lambda) { return {lambda, {}, lambda, nullptr, lambda}; }
+};
+
 class Assembler {
  public:
   /// Precomputes the quadrature data, the unknown numbering and the tangent's pattern.
@@ -44,7 +58,20 @@ class Assembler {
   /// pressures p (num_pressures(), Pa), load factor `lambda`; with `K`, also the
   /// consistent tangent dR/d(unknowns) (its pattern set on the first call, values after).
   Evaluation evaluate(const Positions& x, const Eigen::VectorXd& p, double lambda, Eigen::VectorXd& R,
+                      SparseMatrix* K) const {
+    return evaluate(x, p, Loading::at_factor(lambda), R, K);
+  }
+  /// The same with each load at its own factor (a time step).
+  Evaluation evaluate(const Positions& x, const Eigen::VectorXd& p, const Loading& loading, Eigen::VectorXd& R,
                       SparseMatrix* K) const;
+
+  /// Adds the inertia of a backward-Euler step to a residual and tangent just evaluated:
+  /// R += M (c (x - x0) - v0 / h) and K += c M on the free displacement rows (lumped masses,
+  /// HRZ at order 2), with c = 1/h^2 + alpha/h for mass-proportional damping alpha (1/s).
+  void add_inertia(const Positions& x, const Positions& x0, const Positions& v0, double h_s, double alpha_1_s,
+                   Eigen::VectorXd& R, SparseMatrix* K) const;
+  /// Lumped mass of each node, kg.
+  const Eigen::VectorXd& node_masses() const { return masses_; }
 
   /// x += alpha * (displacement part of delta) on free components; p += alpha * (pressure part).
   void add_increment(const Eigen::VectorXd& delta, double alpha, Positions& x, Eigen::VectorXd& p) const;
@@ -67,7 +94,7 @@ class Assembler {
   };
   void build_pattern();
   int equation_of_dof(int dof) const { return free_eq_[static_cast<size_t>(dof)]; }
-  void add_faces(const Positions& x, double lambda, Eigen::VectorXd& R, SparseMatrix* K) const;
+  void add_faces(const Positions& x, const Loading& loading, Eigen::VectorXd& R, SparseMatrix* K) const;
 
   const Problem& problem_;
   int order_ = 1;
@@ -87,6 +114,8 @@ class Assembler {
   std::vector<int> slots_;                       ///< Per element, local (row, col) -> value index.
   mutable SparseMatrix pattern_;
   int threads_ = 0;
+  Eigen::VectorXd masses_;           ///< Per node, kg.
+  std::vector<int> diagonal_slot_;   ///< Per free displacement equation: its diagonal's value index.
   mutable ThreadGovernor governor_;
   int local_size_ = 0;
 };

@@ -2,14 +2,10 @@
 
 #include "core/hyperelastic/newton.hpp"
 
-#include "core/hyperelastic/tangent_solver.hpp"
-
 #include <algorithm>
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <stdexcept>
 
 namespace fiberfem::core::hyperelastic {
@@ -17,7 +13,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
 
 }  // namespace
 
@@ -27,6 +22,79 @@ void NewtonSettings::validate() const {
   if (max_iterations < 1) throw std::invalid_argument("solver.newton.max_iterations must be >= 1");
   if (max_cutbacks < 0) throw std::invalid_argument("solver.newton.max_cutbacks must be >= 0");
   if (threads < 0) throw std::invalid_argument("solver.threads must be >= 0");
+}
+
+namespace {
+
+constexpr double kRoundOff = 1e-13;
+
+// One merit for both kinds of rows: the force rows against the load, the volume rows
+// against the body's volume.
+double merit(const Assembler& a, const Eigen::VectorXd& R) {
+  return a.displacement_norm(R) / a.reference_load_norm() +
+         (a.num_pressures() > 0 ? R.tail(a.num_pressures()).lpNorm<1>() / a.volume_m3() : 0.0);
+}
+
+bool converged_at(const Assembler& a, const Eigen::VectorXd& R, double tolerance) {
+  return a.displacement_norm(R) <= tolerance * a.reference_load_norm() &&
+         (a.num_pressures() == 0 || R.tail(a.num_pressures()).lpNorm<1>() <= tolerance * a.volume_m3());
+}
+
+}  // namespace
+
+bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const ResidualFn& residual, const NewtonSettings& s,
+                    Positions& xt, Eigen::VectorXd& pt, Eigen::VectorXd& R, SparseMatrix& K, Evaluation& ev,
+                    NewtonReport& rep, bool& singular) {
+  const double fref = assembler.reference_load_norm();
+  const double length = std::cbrt(assembler.volume_m3());
+  Eigen::VectorXd Rn, delta;
+  rep.residual_history.clear();
+  for (int it = 0; it < s.max_iterations && ev.finite && ev.inverted_elements == 0; ++it) {
+    if (converged_at(assembler, R, s.tolerance)) return true;
+    // Inexact Newton: the linear solve to a forcing tolerance that tightens with the
+    // residual keeps the convergence superlinear (Eisenstat and Walker's choice 1 bound).
+    const double m0 = merit(assembler, R);
+    if (!linear.solve(K, R, std::clamp(m0, 1e-12, 1e-2), false, delta)) {
+      singular = true;
+      return false;
+    }
+    // Backtracking: halve while the step inverts an element, gives a non-finite residual,
+    // or multiplies the merit by more than kMaxGrowth (a safeguard, not a descent test:
+    // Newton across a large rotation passes through larger residuals on its way).
+    constexpr double kMaxGrowth = 1e3;
+    double alpha = 1.0;
+    Positions xn;
+    Eigen::VectorXd pn;
+    bool accepted = false;
+    for (int l = 0; l < (s.line_search ? 20 : 1); ++l, alpha *= 0.5) {
+      xn = xt;
+      pn = pt;
+      assembler.add_increment(delta, -alpha, xn, pn);
+      const auto t0 = Clock::now();
+      ev = residual(xn, pn, Rn, nullptr);
+      rep.assembly_s += since(t0);
+      if (ev.finite && ev.inverted_elements == 0 && merit(assembler, Rn) < kMaxGrowth * m0) {
+        accepted = true;
+        break;
+      }
+    }
+    ++rep.iterations;
+    if (!accepted) return false;
+    xt = xn;
+    pt = pn;
+    const auto t0 = Clock::now();
+    ev = residual(xt, pt, R, &K);
+    rep.assembly_s += since(t0);
+    rep.residual_history.push_back(assembler.displacement_norm(R) / fref);
+    // Round-off floor: the update moved no node by more than round-off of the body's
+    // size and the residual stopped falling. No iteration can do better; accept it.
+    const double moved = alpha * delta.head(assembler.num_free_displacements()).lpNorm<Eigen::Infinity>();
+    if (moved <= kRoundOff * length && merit(assembler, R) > 0.5 * m0) {
+      rep.message = "stopped at the round-off floor (relative residual " + std::to_string(rep.residual_history.back()) + ")";
+      return true;
+    }
+  }
+  return ev.finite && ev.inverted_elements == 0 && converged_at(assembler, R, s.tolerance);
 }
 
 NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::VectorXd& p_io, const NewtonSettings& s) {
@@ -43,23 +111,9 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
 
   NewtonReport rep;
   rep.equations = assembler.num_equations();
-  const double fref = assembler.reference_load_norm();
-  const double volume = assembler.volume_m3();
-  const double length = std::cbrt(volume);
-  constexpr double kRoundOff = 1e-13;
-  // One merit for both kinds of rows: the force rows against the load, the volume rows
-  // against the body's volume.
-  auto merit = [&](const Eigen::VectorXd& R) {
-    return assembler.displacement_norm(R) / fref + (assembler.num_pressures() > 0 ? R.tail(assembler.num_pressures()).lpNorm<1>() / volume : 0.0);
-  };
-  auto converged_at = [&](const Eigen::VectorXd& R) {
-    return assembler.displacement_norm(R) <= s.tolerance * fref &&
-           (assembler.num_pressures() == 0 || R.tail(assembler.num_pressures()).lpNorm<1>() <= s.tolerance * volume);
-  };
-
   TangentSolver linear;
   SparseMatrix K;
-  Eigen::VectorXd R, Rn, delta;
+  Eigen::VectorXd R;
   Positions x = x_io;
   Eigen::VectorXd p = p_io;
   // The last converged increment, for the predictor.
@@ -70,87 +124,37 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
   bool singular = false;  // a tangent that could not be factorised
   while (lambda < 1.0 - 1e-14) {
     const double target = std::min(1.0, lambda + dlambda);
+    const ResidualFn residual = [&](const Positions& xa, const Eigen::VectorXd& pa, Eigen::VectorXd& Ra, SparseMatrix* Ka) {
+      return assembler.evaluate(xa, pa, target, Ra, Ka);
+    };
     // Predictor: the last increment extrapolated linearly in the load factor (the state
     // itself when that inverts an element).
     Positions xt = x;
     Eigen::VectorXd pt = p;
-    auto t0 = Clock::now();
+    const auto t0 = Clock::now();
     Evaluation ev;
     if (dlambda_last > 0) {
       const double f = (target - lambda) / dlambda_last;
       xt = x + f * dx_last;
       pt = p + f * dp_last;
-      ev = assembler.evaluate(xt, pt, target, R, &K);
+      ev = residual(xt, pt, R, &K);
       if (!ev.finite || ev.inverted_elements > 0) xt = x, pt = p;
     }
-    if (dlambda_last == 0 || !ev.finite || ev.inverted_elements > 0) ev = assembler.evaluate(xt, pt, target, R, &K);
+    if (dlambda_last == 0 || !ev.finite || ev.inverted_elements > 0) ev = residual(xt, pt, R, &K);
     rep.assembly_s += since(t0);
-    bool converged = false;
-    std::vector<double> history;
-    for (int it = 0; it < s.max_iterations && ev.finite && ev.inverted_elements == 0; ++it) {
-      if (converged_at(R)) {
-        converged = true;
-        break;
-      }
-      // Inexact Newton: the linear solve to a forcing tolerance that tightens with the
-      // residual keeps the convergence superlinear (Eisenstat and Walker's choice 1 bound).
-      const double forcing = std::clamp(merit(R), 1e-12, 1e-2);
-      if (!linear.solve(K, R, forcing, false, delta)) {
-        singular = true;
-        break;
-      }
-      // Backtracking: halve while the step inverts an element, gives a non-finite residual,
-      // or multiplies the merit by more than kMaxGrowth (a safeguard, not a descent test:
-      // Newton across a large rotation passes through larger residuals on its way).
-      constexpr double kMaxGrowth = 1e3;
-      const double m0 = merit(R);
-      double alpha = 1.0;
-      Positions xn;
-      Eigen::VectorXd pn;
-      bool accepted = false;
-      for (int l = 0; l < (s.line_search ? 20 : 1); ++l, alpha *= 0.5) {
-        xn = xt;
-        pn = pt;
-        assembler.add_increment(delta, -alpha, xn, pn);
-        t0 = Clock::now();
-        ev = assembler.evaluate(xn, pn, target, Rn, nullptr);
-        rep.assembly_s += since(t0);
-        if (ev.finite && ev.inverted_elements == 0 && merit(Rn) < kMaxGrowth * m0) {
-          accepted = true;
-          break;
-        }
-      }
-      ++rep.iterations;
-      if (!accepted) break;
-      xt = xn;
-      pt = pn;
-      t0 = Clock::now();
-      ev = assembler.evaluate(xt, pt, target, R, &K);
-      rep.assembly_s += since(t0);
-      history.push_back(assembler.displacement_norm(R) / fref);
-      // Round-off floor: the update moved no node by more than round-off of the body's
-      // size and the residual stopped falling. No iteration can do better; accept it.
-      const double moved = alpha * delta.head(assembler.num_free_displacements()).lpNorm<Eigen::Infinity>();
-      if (moved <= kRoundOff * length && merit(R) > 0.5 * m0) {
-        converged = true;
-        rep.message = "stopped at the round-off floor (relative residual " + std::to_string(history.back()) + ")";
-        break;
-      }
-    }
-    if (!converged && ev.finite && ev.inverted_elements == 0 && converged_at(R)) converged = true;
+    const bool converged = newton_iterate(assembler, linear, residual, s, xt, pt, R, K, ev, rep, singular);
     ++rep.load_steps;
-    rep.residual_history = history;
     if (converged) {
+      rep.relative_residual = assembler.displacement_norm(R) / assembler.reference_load_norm();
       dx_last = xt - x;
       dp_last = pt - p;
       dlambda_last = target - lambda;
       x = xt;
       p = pt;
       lambda = target;
-      rep.relative_residual = assembler.displacement_norm(R) / fref;
       continue;
     }
-    if (rep.cutbacks >= s.max_cutbacks) {
+    if (rep.cutbacks >= s.max_cutbacks || singular) {
       char msg[256];
       std::snprintf(msg, sizeof msg,
                     "the load cannot be carried: Newton did not converge beyond load factor %.4g (increment %.3g, %d "

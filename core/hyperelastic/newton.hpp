@@ -6,6 +6,9 @@
 /// load factor reached.
 
 #include "core/hyperelastic/assembly.hpp"
+#include "core/hyperelastic/tangent_solver.hpp"
+
+#include <functional>
 
 #include <string>
 #include <vector>
@@ -39,6 +42,18 @@ struct NewtonReport {
   int equations = 0;                  ///< Unknowns of the linear systems.
   std::string message;
 };
+
+/// The residual (and, with K, the tangent) of the equations Newton solves at (x, p).
+using ResidualFn = std::function<Evaluation(const Positions& x, const Eigen::VectorXd& p, Eigen::VectorXd& R, SparseMatrix* K)>;
+
+/// Newton's iterations on R(x, p) = 0 from (x, p) (with R, K already evaluated there):
+/// inexact linear solves on `linear`, the line search, the round-off floor. Counts into
+/// `report` (iterations, residual history of this solve). On return (x, p, R) are the last
+/// accepted iterate. @return whether it converged; `singular` when a tangent could not be
+/// factorised.
+bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const ResidualFn& residual, const NewtonSettings& s,
+                    Positions& x, Eigen::VectorXd& p, Eigen::VectorXd& R, SparseMatrix& K, Evaluation& ev,
+                    NewtonReport& report, bool& singular);
 
 /// Solves R(x, p) = 0 at load factor 1 from (x, p) (the rest shape and zero pressure when
 /// empty). On failure (x, p) hold the last converged load level.

@@ -312,9 +312,25 @@ TEST(ShippedScenes, LandVentricleProblem2GuccioneMeetsThePublishedApexAtFullLoad
   std::printf("Land problem 2, Guccione, full load: apex z %.3f / %.3f mm (published -26.6 / -28.3)\n", 1e3 * inner, 1e3 * outer);
 }
 
-TEST(ShippedScenes, AnAccurateSceneRefusesADynamicRunByName) {
-  TempDir dir;
-  const auto r = run_process({FIBERFEM_BIN, "run", scene("land-beam-guccione.yaml"), "--set", "solver.mode=dynamic"});
+// In time, the accurate tier's backward-Euler steps with mass damping settle on the static
+// solution of the same scene (found by the independent load-stepping solve).
+TEST(ShippedScenes, LandBeamGuccioneInTimeSettlesOnItsStaticSolution) {
+  const std::vector<std::string> coarse{"--set", "mesh.cells=[10, 1, 1]"};
+  std::vector<std::string> dynamic = coarse;
+  for (const char* o : {"solver.mode=dynamic", "solver.dt=0.01", "solver.until=1.2", "regions[0].damping={mass: 100.0}"})
+    dynamic.insert(dynamic.end(), {"--set", o});
+  const json s = run_scene("land-beam-guccione.yaml", coarse);
+  const json d = run_scene("land-beam-guccione.yaml", dynamic);
+  EXPECT_EQ(d["dynamic"]["tier"], "accurate");
+  EXPECT_EQ(d["dynamic"]["steps"], 120);
+  const double zs = uz(s, "end"), zd = uz(d, "end");
+  EXPECT_GT(zs, 1e-3);
+  EXPECT_NEAR(zd, zs, 5e-3 * zs);
+  std::printf("Land beam, accurate tier: static tip uz %.4f mm, after 1.2 s of damped motion %.4f mm\n", 1e3 * zs, 1e3 * zd);
+  // Recording an accurate run is not available yet: refused by name.
+  std::vector<std::string> args{FIBERFEM_BIN, "run", scene("land-beam-guccione.yaml"), "--archive", "/tmp/fiberfem-accurate.h5"};
+  args.insert(args.end(), dynamic.begin(), dynamic.end());
+  const auto r = run_process(args);
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("accurate tier"), std::string::npos) << r.output;
 }

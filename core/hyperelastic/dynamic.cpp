@@ -1,0 +1,77 @@
+// Backward-Euler steps with Newton's method (ACCURATE.md section 4).
+
+#include "core/hyperelastic/dynamic.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace fiberfem::core::hyperelastic {
+
+void DynamicSettings::validate() const {
+  if (!(dt_s > 0) || !std::isfinite(dt_s)) throw std::invalid_argument("solver.dt must be > 0 s");
+  if (!(mass_damping_1_s >= 0) || !std::isfinite(mass_damping_1_s))
+    throw std::invalid_argument("regions[].damping.mass must be finite and >= 0");
+  newton.validate();
+}
+
+DynamicSolver::DynamicSolver(const Problem& problem, const DynamicSettings& settings)
+    : problem_(problem), settings_(settings), assembler_(problem) {
+  settings_.validate();
+  if (problem.region_density_kg_m3.empty())
+    throw std::invalid_argument("dynamic: every region needs a density > 0");
+  for (double rho : problem.region_density_kg_m3)
+    if (!(rho > 0)) throw std::invalid_argument("dynamic: every region needs a density > 0");
+  assembler_.set_threads(settings_.newton.threads);
+  x_ = problem.mesh->rest_positions();
+  v_ = Positions::Zero(3, x_.cols());
+  p_ = Eigen::VectorXd::Zero(assembler_.num_pressures());
+  totals_.equations = assembler_.num_equations();
+}
+
+DynamicStepReport DynamicSolver::step(const Loading& loading) {
+  const double h = settings_.dt_s;
+  const ResidualFn residual = [&](const Positions& x, const Eigen::VectorXd& p, Eigen::VectorXd& R, SparseMatrix* K) {
+    const Evaluation ev = assembler_.evaluate(x, p, loading, R, K);
+    assembler_.add_inertia(x, x_, v_, h, settings_.mass_damping_1_s, R, K);
+    return ev;
+  };
+  // Predictor: the last velocity carried over the step (free components only move).
+  Positions x = x_ + h * v_;
+  Eigen::VectorXd p = p_, R;
+  Evaluation ev = residual(x, p, R, &K_);
+  if (!ev.finite || ev.inverted_elements > 0) {
+    x = x_;
+    ev = residual(x, p, R, &K_);
+  }
+  NewtonReport counters;
+  bool singular = false;
+  const bool converged = newton_iterate(assembler_, linear_, residual, settings_.newton, x, p, R, K_, ev, counters, singular);
+  totals_.iterations += counters.iterations;
+  totals_.assembly_s += counters.assembly_s;
+  DynamicStepReport rep;
+  rep.iterations = counters.iterations;
+  rep.converged = converged;
+  if (!converged) {
+    rep.message = singular ? "the step's tangent is singular"
+                           : "Newton did not converge in " + std::to_string(settings_.newton.max_iterations) +
+                                 " iterations (a smaller solver.dt, or a softer load)";
+    return rep;
+  }
+  v_ = (x - x_) / h;
+  x_ = x;
+  p_ = p;
+  t_s_ += h;
+  ++steps_;
+  return rep;
+}
+
+NewtonReport DynamicSolver::totals() const {
+  NewtonReport r = totals_;
+  r.factorisations = linear_.factorisations();
+  r.krylov_iterations = linear_.krylov_iterations();
+  r.factor_s = linear_.seconds();
+  r.converged = true;
+  return r;
+}
+
+}  // namespace fiberfem::core::hyperelastic

@@ -1,0 +1,60 @@
+#pragma once
+/// @file Time steps of the accurate tier: backward Euler with the nonlinear internal force,
+/// solved by Newton at every step (ACCURATE.md section 4):
+///   M (v1 - v0)/h + alpha M v1 + f_int(x1, p1) = f_ext(t1),   v1 = (x1 - x0)/h,
+/// with the consistent tangent K(x1) + (1/h^2 + alpha/h) M, lumped masses (HRZ at order 2)
+/// and mass-proportional damping alpha. The incompressibility constraint, when a region
+/// has one, holds at every step.
+
+#include "core/hyperelastic/newton.hpp"
+
+#include <string>
+
+namespace fiberfem::core::hyperelastic {
+
+struct DynamicSettings {
+  double dt_s = 1.0 / 60.0;     ///< solver.dt: step, s, > 0.
+  double mass_damping_1_s = 0;  ///< Rayleigh alpha, 1/s, >= 0 (one value for the body).
+  NewtonSettings newton;        ///< tolerance, max_iterations, line_search, threads per step.
+  /// @throws std::invalid_argument naming the key.
+  void validate() const;
+};
+
+struct DynamicStepReport {
+  bool converged = false;
+  int iterations = 0;
+  std::string message;  ///< Why a step failed ("" when it converged).
+};
+
+class DynamicSolver {
+ public:
+  /// Starts at rest (rest positions, zero velocity and pressure). Every region needs a
+  /// density > 0. @throws std::invalid_argument for an invalid problem or settings.
+  DynamicSolver(const Problem& problem, const DynamicSettings& settings);
+
+  /// One step to time t + dt with the loads at `loading` (their values at the step's end).
+  /// A step that does not converge leaves the state unchanged and says why.
+  DynamicStepReport step(const Loading& loading);
+
+  double time_s() const { return t_s_; }
+  long steps() const { return steps_; }
+  const Positions& positions() const { return x_; }
+  const Positions& velocities() const { return v_; }
+  const Eigen::VectorXd& pressures() const { return p_; }
+  /// Totals over the steps so far (iterations, factorisations, times).
+  NewtonReport totals() const;
+
+ private:
+  const Problem& problem_;
+  DynamicSettings settings_;
+  Assembler assembler_;
+  TangentSolver linear_;
+  SparseMatrix K_;
+  Positions x_, v_;
+  Eigen::VectorXd p_;
+  double t_s_ = 0;
+  long steps_ = 0;
+  NewtonReport totals_;
+};
+
+}  // namespace fiberfem::core::hyperelastic
