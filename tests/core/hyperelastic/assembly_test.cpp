@@ -84,6 +84,12 @@ Positions deformed(const ElementMesh& m, double rotation_rad) {
 
 class AssemblyTangent : public ::testing::TestWithParam<Case> {};
 
+std::string case_name(const ::testing::TestParamInfo<Case>& info) {
+  static const char* const kLaw[] = {"NeoHookean", "Guccione", "HolzapfelOgden"};
+  return std::string(kLaw[static_cast<int>(info.param.kind)]) + "Order" + std::to_string(info.param.order) +
+         (info.param.incompressible ? "Mixed" : "Penalty");
+}
+
 TEST_P(AssemblyTangent, IsTheDerivativeOfTheResidual) {
   const Case c = GetParam();
   const Problem problem = make_problem(c);
@@ -120,7 +126,8 @@ TEST_P(AssemblyTangent, IsTheDerivativeOfTheResidual) {
 INSTANTIATE_TEST_SUITE_P(LawsOrders, AssemblyTangent,
                          ::testing::Values(Case{LawKind::neo_hookean, 1, false}, Case{LawKind::neo_hookean, 2, false},
                                            Case{LawKind::guccione, 1, true}, Case{LawKind::guccione, 2, true},
-                                           Case{LawKind::holzapfel_ogden, 2, false}, Case{LawKind::holzapfel_ogden, 2, true}));
+                                           Case{LawKind::holzapfel_ogden, 2, false}, Case{LawKind::holzapfel_ogden, 2, true}),
+                         case_name);
 
 TEST(Assembly, ARigidMotionOfTheRestShapeHasNoInternalForce) {
   for (int order : {1, 2}) {
