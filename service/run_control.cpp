@@ -21,8 +21,22 @@ using detail::Args;
 using detail::join;
 using detail::Reject;
 
+namespace {
+
+// The service steps the real-time tier; a scene of the accurate tier would run on its
+// laws' small-strain limits without a word, so it is refused by name.
+io::Scene real_time(io::Scene scene) {
+  if (scene.accurate())
+    throw std::invalid_argument("scene '" + scene.name +
+                                "' is on the accurate tier (material.law or mesh.order 2): `fiberfem run` solves it; "
+                                "the service, replay and recording do not run accurate scenes yet");
+  return scene;
+}
+
+}  // namespace
+
 RunControl::RunControl(io::Scene scene, const io::EmbeddedFiles* files)
-    : scene_(std::move(scene)),
+    : scene_(real_time(std::move(scene))),
       scene_doc_(scene_.yaml_text),
       params_(scene_.parameters),
       sim_(std::make_unique<core::Simulator>(scene_.model, scene_.settings)),

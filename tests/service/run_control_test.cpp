@@ -92,6 +92,20 @@ TEST(RunControl, BadCommandsAreRefusedWithAReasonAndChangeNothing) {
 
 // A force spread over the free end, held until the damped beam settles, must give the
 // static equilibrium of the same load (the static Newton solver, an independent path).
+// The service steps the real-time tier: an accurate scene is refused by name, never run on
+// its laws' small-strain limits.
+TEST(RunControl, AnAccurateSceneIsRefusedByName) {
+  const io::Scene sc = io::parse_scene(kBeam, "beam", "",
+                                       {"regions[0].material={law: neo_hookean, mu: 2.0e4, bulk_modulus: 2.0e5, density: 1000.0}"});
+  ASSERT_TRUE(sc.accurate());
+  try {
+    RunControl rc(sc);
+    ADD_FAILURE() << "expected a refusal";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("accurate tier"), std::string::npos) << e.what();
+  }
+}
+
 TEST(RunControl, AppliedForceSettlesToTheStaticEquilibriumOfThatLoad) {
   io::Scene sc = io::parse_scene(kBeam, "beam", "", {"loads.gravity=[0, 0, 0]", "regions[0].damping.mass=60"});
   RunControl rc(sc);
