@@ -29,16 +29,19 @@ def arguments(description, add_mesh_arguments):
     ap.add_argument("--load-steps", type=int, required=True, help="equal load increments (halved on failure)")
     ap.add_argument("--rtol", type=float, default=1e-9, help="Newton: residual norm relative to the first of "
                                                              "each increment (default 1e-9)")
+    ap.add_argument("--strain", choices=("isochoric", "plain"), default="isochoric",
+                    help="the Green strain the law is written in: isochoric (J^(-2/3) C - I)/2, as fiberfem, "
+                         "or plain (C - I)/2 (default isochoric)")
     ap.add_argument("--report", help="write the results as JSON here")
     ap.add_argument("--verbose", action="store_true", help="print dolfinx's Newton log")
     return ap.parse_args()
 
 
-def guccione_isochoric(F, C, b_f, b_t, b_fs):
-    """W = C/2 (exp(Q) - 1) in the isochoric Green strain, fibers along x, sheets along y
-    (fiber frame = the Cartesian axes)."""
-    J = ufl.det(F)
-    E = 0.5 * (J ** (-2.0 / 3.0) * F.T * F - ufl.Identity(3))
+def guccione(F, strain, C, b_f, b_t, b_fs):
+    """W = C/2 (exp(Q) - 1) in the isochoric (or plain) Green strain, fibers along x, sheets
+    along y (fiber frame = the Cartesian axes)."""
+    scale = ufl.det(F) ** (-2.0 / 3.0) if strain == "isochoric" else 1.0
+    E = 0.5 * (scale * F.T * F - ufl.Identity(3))
     Q = (b_f * E[0, 0] ** 2
          + b_t * (E[1, 1] ** 2 + E[2, 2] ** 2 + E[1, 2] ** 2 + E[2, 1] ** 2)
          + b_fs * (E[0, 1] ** 2 + E[1, 0] ** 2 + E[0, 2] ** 2 + E[2, 0] ** 2))
@@ -60,7 +63,7 @@ class LandProblem:
     """The mixed problem on `domain`: law parameters, Dirichlet facets (every displacement
     component held) and the facets carrying the follower pressure."""
 
-    def __init__(self, domain, law, fixed_facets, pressure_facets, quadrature_degree, facet_quadrature_degree):
+    def __init__(self, domain, law, strain, fixed_facets, pressure_facets, quadrature_degree, facet_quadrature_degree):
         self.domain = domain
         cell = domain.ufl_cell()
         P2 = ufl.VectorElement("Lagrange", cell, 2)
@@ -85,7 +88,7 @@ class LandProblem:
         F = ufl.Identity(3) + ufl.grad(u)
         J = ufl.det(F)
         self.load = fem.Constant(domain, PETSc.ScalarType(0.0))
-        energy = guccione_isochoric(F, **law) * dx - p * (J - 1) * dx
+        energy = guccione(F, strain, **law) * dx - p * (J - 1) * dx
         N = ufl.FacetNormal(domain)
         residual = ufl.derivative(energy, self.w, ufl.TestFunction(self.W)) \
             + self.load * J * ufl.inner(ufl.inv(F).T * N, v) * ds(1)
@@ -125,7 +128,8 @@ class LandProblem:
         that fails is halved (at most 10 times in the solve) and the increment doubles back
         after a success, up to 1/load_steps. A failed Newton solve leaves the LU factor of
         a NaN matrix behind, so the solver is rebuilt after each failure.
-        Returns (converged, increments, Newton iterations, cut-backs)."""
+        Returns (converged, load factor reached, increments, Newton iterations, cut-backs);
+        on failure the state is the last converged one."""
         solver = self.solver(rtol)
         largest = 1.0 / load_steps
         reached, step, increments, iterations, cutbacks = 0.0, largest, 0, 0, 0
@@ -145,13 +149,13 @@ class LandProblem:
                 step = min(largest, 2 * step)
             else:
                 cutbacks += 1
-                if cutbacks > 10:
-                    return False, increments, iterations, cutbacks
-                step *= 0.5
                 self.w.x.array[:] = saved
                 self.w.x.scatter_forward()
+                if cutbacks > 10:
+                    return False, reached, increments, iterations, cutbacks
+                step *= 0.5
                 solver = self.solver(rtol)
-        return True, increments, iterations, cutbacks
+        return True, reached, increments, iterations, cutbacks
 
     def unknowns(self):
         """(all unknowns, those not held by the Dirichlet condition)."""
@@ -175,15 +179,15 @@ def run(args, make_mesh, law, full_load, probes, mesh_description):
     timer = Timer()
     t0 = time.perf_counter()
     domain, fixed, pressure = timer.measure("mesh_s", make_mesh)
-    lp = timer.measure("setup_s", LandProblem, domain, law, fixed, pressure, args.quadrature_degree,
+    lp = timer.measure("setup_s", LandProblem, domain, law, args.strain, fixed, pressure, args.quadrature_degree,
                        args.facet_quadrature_degree)
-    converged, increments, iterations, cutbacks = timer.measure(
+    converged, load_factor, increments, iterations, cutbacks = timer.measure(
         "solve_s", lp.solve, full_load, args.load_steps, args.rtol)
     values = {name: lp.node_z(point) for name, point in probes.items()}
     wall = time.perf_counter() - t0
     report = {"code": "FEniCSx (dolfinx) " + __import__("dolfinx").__version__,
               "mesh": mesh_description, "unknowns": lp.unknowns()[0], "free_unknowns": lp.unknowns()[1],
-              "quadrature_degree": args.quadrature_degree, "facet_quadrature_degree": args.facet_quadrature_degree, "converged": converged,
+              "strain": args.strain, "quadrature_degree": args.quadrature_degree, "facet_quadrature_degree": args.facet_quadrature_degree, "converged": converged, "load_factor": load_factor,
               "load_steps": increments, "newton_iterations": iterations, "cutbacks": cutbacks,
               "probes_z_mm": values, "timing": {"wall_s": wall, **timer.phases}}
     print(json.dumps(report, indent=1))
