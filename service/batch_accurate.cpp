@@ -18,6 +18,24 @@
 
 namespace fiberfem::service::detail {
 
+namespace {
+
+// Each probe interpolated with the element's shape functions: a printed line and a report entry.
+json probes_report(const io::Scene& sc, const core::hyperelastic::ElementMesh& mesh, const core::Positions& x, std::ostream& out) {
+  json probes = json::array();
+  for (const io::Probe& pr : sc.probes) {
+    const core::Vec3 u = io::accurate_probe_displacement(mesh, pr, x);
+    char line[256];
+    std::snprintf(line, sizeof line, "probe %s: displacement [%+.6e, %+.6e, %+.6e] m (|u| %.6e m)\n", pr.name.c_str(), u.x(),
+                  u.y(), u.z(), u.norm());
+    out << line;
+    probes.push_back({{"name", pr.name}, {"rest_m", vec_json(pr.point_m)}, {"final_m", vec_json(pr.point_m + u)}, {"displacement_m", vec_json(u)}});
+  }
+  return probes;
+}
+
+}  // namespace
+
 int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out) {
   char line[512];
   const auto t0 = std::chrono::steady_clock::now();
@@ -40,14 +58,7 @@ int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out) {
                 r.equations, wall, r.assembly_s, r.factor_s, r.factorisations, r.krylov_iterations);
   out << line;
   if (!r.converged) out << "static: " << r.message << "\n";
-  json probes = json::array();
-  for (const io::Probe& pr : sc.probes) {
-    const core::Vec3 u = io::accurate_probe_displacement(mesh, pr, x);
-    std::snprintf(line, sizeof line, "probe %s: displacement [%+.6e, %+.6e, %+.6e] m (|u| %.6e m)\n", pr.name.c_str(), u.x(),
-                  u.y(), u.z(), u.norm());
-    out << line;
-    probes.push_back({{"name", pr.name}, {"rest_m", vec_json(pr.point_m)}, {"final_m", vec_json(pr.point_m + u)}, {"displacement_m", vec_json(u)}});
-  }
+  const json probes = probes_report(sc, mesh, x, out);
   report["status"] = r.converged ? "completed" : "failed";
   report["reason"] = r.converged ? "" : r.message;
   report["static"] = {{"converged", r.converged},
@@ -142,14 +153,7 @@ int run_dynamic_accurate(const io::Scene& sc, int steps, json& report, std::ostr
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const core::hyperelastic::NewtonReport totals = solver.totals();
-  json probes = json::array();
-  for (const io::Probe& pr : sc.probes) {
-    const core::Vec3 u = io::accurate_probe_displacement(*ap.mesh, pr, solver.positions());
-    std::snprintf(line, sizeof line, "probe %s: displacement [%+.6e, %+.6e, %+.6e] m (|u| %.6e m)\n", pr.name.c_str(), u.x(),
-                  u.y(), u.z(), u.norm());
-    out << line;
-    probes.push_back({{"name", pr.name}, {"rest_m", vec_json(pr.point_m)}, {"final_m", vec_json(pr.point_m + u)}, {"displacement_m", vec_json(u)}});
-  }
+  const json probes = probes_report(sc, *ap.mesh, solver.positions(), out);
   const bool completed = done == steps;
   std::snprintf(line, sizeof line,
                 "dynamic: %s, %d of %d steps in %.2f s (%.1f steps/s), %d Newton iterations (at most %d in a step), %d "
