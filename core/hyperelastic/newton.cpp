@@ -162,9 +162,11 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
                     lambda, dlambda, rep.cutbacks);
       rep.message = msg;
       if (singular && lambda == 0)
-        rep.message = "the tangent is singular at the rest state: the body is not held against rigid motion, or "
-                      "linear tetrahedra with material.incompressible (one pressure per element locks them, with about "
-                      "as many pressures as free displacements); use mesh.order 2 or a material.bulk_modulus";
+        rep.message = "the tangent could not be factorised at the rest state (the sparse LU found it singular or ran "
+                      "out of memory): the body is not held against rigid motion; or linear tetrahedra with "
+                      "material.incompressible (one pressure per element locks them, with about as many pressures as "
+                      "free displacements: use mesh.order 2 or a material.bulk_modulus); or the mesh is beyond what the "
+                      "direct solver handles here";
       break;
     }
     dlambda *= 0.5;
