@@ -82,10 +82,8 @@ AccurateProblem accurate_problem(const Scene& sc) {
     problem->axes.reserve(static_cast<size_t>(mesh.num_elements() * points));
     for (int e = 0; e < mesh.num_elements(); ++e)
       for (const Eigen::Vector3d& xi : rule.points) {
-        const core::hyperelastic::TetShape sh = core::hyperelastic::tet_shape(mesh.order(), xi);
-        core::Vec3 X = core::Vec3::Zero();
-        for (int a = 0; a < mesh.nodes_per_element(); ++a)
-          X += sh.N(a) * mesh.rest_positions().col(mesh.elements()[static_cast<size_t>(e)][static_cast<size_t>(a)]);
+        // The element's padded node columns times its shape values: the point at xi.
+        const core::Vec3 X = mesh.element_positions(e) * core::hyperelastic::tet_shape(mesh.order(), xi).N;
         problem->axes.push_back(core::hyperelastic::ellipsoid_helix_axes(*sc.lv_ellipsoid, fibers->rule.endo_angle_deg,
                                                                           fibers->rule.epi_angle_deg, X));
       }
