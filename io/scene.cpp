@@ -133,10 +133,11 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   scene.parameters = std::move(parameters);
   core::Model& model = scene.model;
   fibers_and_contraction(top, files, scene);
-  check_accurate(scene);
   detail::read_fixed(top, model);
   detail::read_loads(top, model, scene.parameters.gravity_m_s2);
   solver(top, fidelity, scene);
+  scene.name = top.has("name") ? top.text("name") : origin;
+  check_accurate(scene);
   scene.probes = detail::read_probes(top, model.mesh);
   try {
     model.validate();
@@ -144,7 +145,6 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
   } catch (const std::invalid_argument& e) {
     throw SceneError(origin + ": " + e.what());
   }
-  scene.name = top.has("name") ? top.text("name") : origin;
   scene.cavities = detail::read_cavities(top, model.mesh);
   if (top.has("archive")) scene.archive = detail::read_archive(checks, top["archive"]);
   text_and_hash(root, files, scene);

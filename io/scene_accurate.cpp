@@ -38,18 +38,27 @@ std::shared_ptr<const ElementMesh> element_mesh(const Scene& sc) {
 }  // namespace
 
 bool Scene::accurate() const {
+  const std::optional<Tier> tier = parameters.solver.tier;
+  if (tier && *tier != Tier::automatic) return *tier == Tier::accurate;
   if (mesh_order != 1) return true;
   return std::any_of(parameters.regions.begin(), parameters.regions.end(),
                      [](const RegionParameters& r) { return r.material.law.has_value(); });
 }
 
 void check_accurate(const Scene& sc) {
+  const bool tier_given = sc.parameters.solver.tier && *sc.parameters.solver.tier != Tier::automatic;
+  if (tier_given && !sc.accurate() && sc.mesh_order != 1)
+    throw SceneError(sc.name + ": solver.tier: real_time runs linear tetrahedra, but the mesh is of order 2" +
+                     (sc.file_elements ? " (the mesh file's 10-node tetrahedra): give mesh.order: 1 to run its corners"
+                                       : ": give mesh.order: 1") +
+                     ", or solver.tier: accurate");
   if (!sc.accurate()) return;
   for (size_t r = 0; r < sc.parameters.regions.size(); ++r) {
     const auto& law = sc.parameters.regions[r].material.law;
     if (!law)
       throw SceneError(sc.name + ": regions[" + std::to_string(r) + "].material: needs a law" +
-                       (sc.mesh_order != 2   ? " (another region has one)"
+                       (tier_given           ? " (solver.tier: accurate runs hyperelastic laws only)"
+                        : sc.mesh_order != 2 ? " (another region has one)"
                         : sc.file_elements ? " (the mesh file has 10-node tetrahedra, which run on the accurate tier; "
                                              "mesh.order: 1 runs its corner mesh on the real-time tier)"
                                            : " (mesh.order 2 runs on the accurate tier)") +

@@ -23,6 +23,10 @@ namespace fiberfem::io {
 
 enum class Mode { dynamic, static_ };
 
+/// Which engine runs the scene (solver.tier): automatic picks the accurate tier when a region
+/// names a material.law or the mesh is of order 2.
+enum class Tier { automatic, real_time, accurate };
+
 /// The isotropic form of a material (scene keys E, nu), Pa and 1.
 struct IsotropicConstants {
   double E = 0;
@@ -112,6 +116,7 @@ struct SolverSpec {
   std::optional<int> newton_max_iterations;   ///< solver.newton.max_iterations.
   std::optional<bool> newton_line_search;     ///< solver.newton.line_search.
   std::optional<int> quadrature;              ///< solver.quadrature: points per element.
+  std::optional<Tier> tier;                   ///< solver.tier.
 };
 
 /// Every section of a scene that a parameter command can change.

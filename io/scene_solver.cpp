@@ -23,6 +23,7 @@ const Names<core::FirstFactorisation> kFirstFactorisations = {{"auto", core::Fir
                                                                {"wait", core::FirstFactorisation::wait},
                                                                {"beside", core::FirstFactorisation::beside}};
 const Names<Mode> kModes = {{"dynamic", Mode::dynamic}, {"static", Mode::static_}};
+const Names<Tier> kTiers = {{"auto", Tier::automatic}, {"real_time", Tier::real_time}, {"accurate", Tier::accurate}};
 
 template <class E>
 E read_name(const Checks& checks, const YAML::Node& n, const std::string& path, const Names<E>& names) {
@@ -68,12 +69,13 @@ void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec)
   const CheckedMap s(checks, node, "solver",
                      {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
                       "max_energy_gain", "until", "recycled_solutions", "threads", "corotation", "first_factorisation",
-                      "load_steps", "newton", "quadrature"});
+                      "load_steps", "newton", "quadrature", "tier"});
   SolverSpec r = spec;
   if (s.has("threads")) r.threads = s.integer("threads", 0, 1024);
   if (s.has("recycled_solutions")) r.recycled_solutions = s.integer("recycled_solutions", 0, 64);
   if (s.has("until")) r.until_s = s.number("until", 0, 1e9, true);
   if (s.has("mode")) r.mode = read_name(checks, s["mode"], "solver.mode", kModes);
+  if (s.has("tier")) r.tier = read_name(checks, s["tier"], "solver.tier", kTiers);
   if (s.has("dt")) r.dt_s = s.number("dt", 0, 10, true);
   if (s.has("method")) r.method = read_solver_method(checks, s["method"], "solver.method");
   if (s.has("tolerance")) r.tolerance = s.number("tolerance", 0, 1, true);
@@ -139,6 +141,7 @@ YAML::Node write_solver(const SolverSpec& s) {
   if (s.first_factorisation) n["first_factorisation"] = name_of(*s.first_factorisation, kFirstFactorisations);
   if (s.load_steps) n["load_steps"] = *s.load_steps;
   if (s.quadrature) n["quadrature"] = *s.quadrature;
+  if (s.tier) n["tier"] = name_of(*s.tier, kTiers);
   if (s.newton_tolerance) n["newton"]["tolerance"] = *s.newton_tolerance;
   if (s.newton_max_iterations) n["newton"]["max_iterations"] = *s.newton_max_iterations;
   if (s.newton_line_search) n["newton"]["line_search"] = *s.newton_line_search;

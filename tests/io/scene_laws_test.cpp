@@ -6,6 +6,8 @@
 #include "io/scene_accurate.hpp"
 #include "io/scene_sections.hpp"
 #include "io/gmsh_test_files.hpp"
+#include "core/hyperelastic/newton.hpp"
+#include "core/static_solver.hpp"
 
 #include <gtest/gtest.h>
 
@@ -169,6 +171,78 @@ solver: {mode: static}
       with(with(scene, "scale: 0.001}", "scale: 0.001, order: 1}"), "law: neo_hookean, mu: 1000.0, bulk_modulus: 1.0e5", "E: 1.0e4, nu: 0.3"),
       "two.yaml", dir);
   EXPECT_FALSE(corners.accurate());
+}
+
+// solver.tier: real_time runs a law's small-strain limit on the corotated linear engine.
+// Two independent solvers on the same linear tetrahedra under a load small enough for
+// linear elasticity (tip about 1e-4 of the beam): the real-time tier's static solve with
+// the linearised material and the accurate tier's Newton with the neo-Hookean law must
+// give the same tip deflection to the size of the nonlinear terms.
+TEST(SceneLaws, TheRealTimeTierRunsALawAsItsSmallStrainLimit) {
+  const std::string beam = R"(name: tiers
+mesh: {generator: box, size: [0.010, 0.002, 0.002], cells: [10, 2, 2]}
+regions:
+  - name: body
+    material: {law: neo_hookean, E: 10000.0, nu: 0.3, density: 1000.0}
+fixed:
+  - plane: {axis: x, value: 0.0}
+loads: {gravity: [0.0, 0.0, -0.01]}
+solver: {mode: static, load_steps: 1}
+probes: {tip: [0.010, 0.001, 0.001]}
+)";
+  const Scene accurate = parse_scene(beam, "tiers.yaml");
+  const Scene fast = parse_scene(beam, "tiers.yaml", "", {"solver.tier=real_time"});
+  ASSERT_TRUE(accurate.accurate());
+  ASSERT_FALSE(fast.accurate());
+  EXPECT_TRUE(parse_scene(beam, "tiers.yaml", "", {"solver.tier=accurate"}).accurate());
+
+  core::Positions x_fast;
+  const core::StaticReport rf = core::solve_static(fast.model, x_fast);
+  ASSERT_TRUE(rf.converged) << rf.message;
+  const double tip_fast = fast.probes.at(0).displacement(fast.model.mesh, x_fast).z();
+
+  const AccurateProblem ap = accurate_problem(accurate);
+  core::Positions x = ap.mesh->rest_positions();
+  Eigen::VectorXd p;
+  const core::hyperelastic::NewtonReport ra = core::hyperelastic::solve_static(*ap.problem, x, p, ap.newton);
+  ASSERT_TRUE(ra.converged) << ra.message;
+  const double tip_accurate = accurate_probe_displacement(*ap.mesh, accurate.probes.at(0), x).z();
+
+  ASSERT_LT(tip_accurate, -1e-7);  // a deflection to compare (about 1 um)
+  EXPECT_GT(tip_accurate, -1e-5);  // small strain
+  EXPECT_NEAR(tip_fast / tip_accurate, 1.0, 2e-3) << tip_fast << " " << tip_accurate;
+}
+
+TEST(SceneLaws, TheTierIsCheckedAgainstTheMeshAndTheMaterial) {
+  // real_time on 10-node tetrahedra: named, with the way out.
+  try {
+    parse_scene(kBeam, "test.yaml", "", {"solver.tier=real_time"});
+    ADD_FAILURE() << "expected an error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("solver.tier: real_time runs linear tetrahedra"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("mesh.order: 1"), std::string::npos) << e.what();
+  }
+  // The law's scene at order 1 runs on the real-time tier with the linearised material.
+  const Scene fast = parse_scene(kBeam, "test.yaml", "", {"solver.tier=real_time", "mesh.order=1"});
+  EXPECT_FALSE(fast.accurate());
+  EXPECT_NEAR(fast.model.region_materials.at(0).constants().C33, linearised_material(*fast.parameters.regions[0].material.law, 1000.0).constants().C33, 1e-6);
+  // accurate without a law: the region named.
+  const std::string linear = with(kBeam, "material: {law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0, incompressible: true, density: 1000.0}",
+                                  "material: {E: 10000.0, nu: 0.3, density: 1000.0}");
+  try {
+    parse_scene(linear, "test.yaml", "", {"solver.tier=accurate", "mesh.order=1"});
+    ADD_FAILURE() << "expected an error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("regions[0].material: needs a law (solver.tier: accurate"), std::string::npos) << e.what();
+  }
+  // A bad name lists the allowed ones.
+  try {
+    parse_scene(kBeam, "test.yaml", "", {"solver.tier=fast"});
+    ADD_FAILURE() << "expected an error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("solver.tier"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("real_time"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -9,9 +9,10 @@ ERROR_MEASURES = {
     "volume": ("volume_err",),
     "ef": ("ef_err_pp",),
     "phase": ("phase_err_ms",),
+    "settled": ("settled_err", "settled_err_m"),
 }
 # Cost columns a sweep may rank by (smaller is cheaper).
-COST_MEASURES = ("engine_s_per_sim_s", "wall_s_per_sim_s", "peak_rss_mb")
+COST_MEASURES = ("engine_s_per_sim_s", "wall_s_per_sim_s", "wall_s", "peak_rss_mb")
 # The column each error measure is ranked by (Pareto front, goals, plots).
 ERROR_COLUMN = {"probe": "probe_err", "l2": "l2_err", "volume": "volume_err", "ef": "ef_err_abs_pp",
-                "phase": "phase_err_abs_ms"}
+                "phase": "phase_err_abs_ms", "settled": "settled_err"}

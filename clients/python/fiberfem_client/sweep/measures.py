@@ -96,12 +96,42 @@ def _last_beat_ef(report):
     return (beats[-1] if beats else cav[0]).get("ejection_fraction")
 
 
+ARCHIVE_ERRORS = ("probe", "l2", "volume", "phase")  # need both runs' archives; "ef" and "settled" the reports only
+
+
+def _final_probe_displacement(report):
+    probes = (report or {}).get("probes") or []
+    if not probes:
+        return None
+    return np.asarray(probes[0]["final_m"], dtype=np.float64) - np.asarray(probes[0]["rest_m"], dtype=np.float64)
+
+
+def report_error_measures(run_report, ref_report, wanted) -> dict:
+    """The error columns that come from the two reports alone ("ef", "settled")."""
+    out = {}
+    if "ef" in wanted:
+        ef, efr = _last_beat_ef(run_report), _last_beat_ef(ref_report)
+        out["ef_err_pp"] = 100.0 * (ef - efr) if ef is not None and efr is not None else math.nan
+        out["ef_err_abs_pp"] = abs(out["ef_err_pp"])
+    if "settled" in wanted:
+        u, ur = _final_probe_displacement(run_report), _final_probe_displacement(ref_report)
+        if u is None or ur is None or not np.linalg.norm(ur) > 0:
+            out["settled_err"] = out["settled_err_m"] = math.nan
+        else:
+            out["settled_err_m"] = float(np.linalg.norm(u - ur))
+            out["settled_err"] = out["settled_err_m"] / float(np.linalg.norm(ur))
+    return out
+
+
 def error_measures(run_archive, run_report, ref_archive, ref_report, sample_s, wanted) -> dict:
     """The error columns of `wanted` measures (ERROR_MEASURES keys) of a run against the
-    reference; NaN where the scene has no such quantity (no probe, no cavity)."""
+    reference; NaN where the scene has no such quantity (no probe, no cavity). The archives
+    may be None when no wanted measure needs them (ARCHIVE_ERRORS)."""
+    out = report_error_measures(run_report, ref_report, wanted)
+    if not any(e in ARCHIVE_ERRORS for e in wanted):
+        return out
     run, ref = Trace(run_archive), Trace(ref_archive)
     times = sample_times(run, ref, sample_s)
-    out = {}
     if "probe" in wanted:
         out.update(_probe_errors(run, ref, times))
     if "l2" in wanted:
@@ -114,10 +144,6 @@ def error_measures(run_archive, run_report, ref_archive, ref_report, sample_s, w
             out["volume_err"] = float(np.max(np.abs(v - vr)) / ref.volumes[0, 0])
         else:
             out["volume_err"] = math.nan
-    if "ef" in wanted:
-        ef, efr = _last_beat_ef(run_report), _last_beat_ef(ref_report)
-        out["ef_err_pp"] = 100.0 * (ef - efr) if ef is not None and efr is not None else math.nan
-        out["ef_err_abs_pp"] = abs(out["ef_err_pp"])
     if "phase" in wanted:
         out["phase_err_ms"] = 1e3 * (_event_time(run, times, run_report) - _event_time(ref, times, ref_report))
         out["phase_err_abs_ms"] = abs(out["phase_err_ms"])

@@ -11,7 +11,7 @@ from .columns import ERROR_COLUMN
 
 MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 COST_LABEL = {"engine_s_per_sim_s": "engine s per simulated s", "wall_s_per_sim_s": "wall s per simulated s",
-              "peak_rss_mb": "peak memory, MB"}
+              "wall_s": "wall time of the run, s", "peak_rss_mb": "peak memory, MB"}
 
 
 def plot_errors(df, errors: list, cost: str, goals: list, out_dir: str, title: str) -> list:

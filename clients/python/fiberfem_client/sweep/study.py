@@ -9,14 +9,12 @@ import subprocess
 import sys
 
 from .columns import ERROR_COLUMN
-from .measures import error_measures
+from .measures import ARCHIVE_ERRORS, error_measures
 from .outdir import OutputDir
 from .plots import plot_errors
 from .runner import Progress
 from .task import read_json as _read_json
 from .table import build_table, recommendations, write_table
-
-ARCHIVE_ERRORS = ("probe", "l2", "volume")  # computed from the archives ("ef" from the reports)
 
 
 def _job(sweep, config, binary, od, done_keys, reference, archive, keep):
@@ -82,16 +80,18 @@ class SweepRun:
         """Runs (or finds done, with its archive still there) the reference; returns the
         paths the other configurations' errors are measured against, or None."""
         sw = self.sweep
-        with_archive = {k for k, r in self.done.items()
-                        if r.get("run_dir") and os.path.exists(os.path.join(r["run_dir"], "run.h5"))}
-        job = _job(sw, sw.reference, self.binary, self.od, with_archive, None, True, True)
+        archive = any(e in ARCHIVE_ERRORS for e in sw.errors)
+        usable = {k for k, r in self.done.items()
+                  if r.get("run_dir") and (not archive or os.path.exists(os.path.join(r["run_dir"], "run.h5")))}
+        job = _job(sw, sw.reference, self.binary, self.od, usable, None, archive, True)
         self._run_all([(job, sw.reference)], "reference")
         row = self.rows[sw.reference.name]
         if row.get("status") != "completed":
             print(f"fiberfem sweep: the reference did not complete ({row.get('status')}: {row.get('reason')}); "
                   "no error measures", file=self.stream)
             return None
-        ref = {"archive": os.path.join(row["run_dir"], "run.h5"), "report": os.path.join(row["run_dir"], "report.json")}
+        ref = {"archive": os.path.join(row["run_dir"], "run.h5") if archive else None,
+               "report": os.path.join(row["run_dir"], "report.json")}
         # The reference against itself: zero by construction, a check of the measures' plumbing.
         own = error_measures(ref["archive"], _read_json(ref["report"]), ref["archive"], _read_json(ref["report"]),
                              sw.sample_s, sw.errors)

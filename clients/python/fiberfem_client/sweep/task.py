@@ -124,9 +124,9 @@ def _run(job, row) -> dict:
     out.update(_report_fields(report))
     if report:
         out.update(cost_measures(report, peak_kib))
-    if out["status"] == "completed" and job.get("reference") and job["archive"]:
+    if out["status"] == "completed" and job.get("reference"):
         ref = job["reference"]
-        out.update(error_measures(archive_path, report, ref["archive"], read_json(ref["report"]),
+        out.update(error_measures(archive_path if job["archive"] else None, report, ref["archive"], read_json(ref["report"]),
                                   job["sample_s"], job["errors"]))
     if job["archive"] and not job.get("keep_archive"):
         for p in (archive_path, archive_path[:-3] + ".xdmf"):
