@@ -18,24 +18,29 @@ std::string content(const std::string& line) {
   return s.substr(a, b - a + 1);
 }
 
-core::Vec3 parse_triple(const std::string& text, const std::string& origin, int line) {
-  // strtod, not a stream: "nan" and "inf" read as numbers and are refused as such.
+std::string at(const std::string& origin, int line) { return origin + ":" + std::to_string(line) + ": "; }
+
+// The numbers of a line, as many as it has (up to 7, enough to refuse a bad count).
+// strtod, not a stream: "nan" and "inf" read as numbers and are refused as such.
+std::vector<double> parse_numbers(const std::string& text, const std::string& origin, int line, const char* expected) {
   std::istringstream ss(text);
-  core::Vec3 v;
+  std::vector<double> v;
   std::string word;
-  int n = 0;
-  bool numbers = true;
-  while (ss >> word) {
+  while (ss >> word && v.size() < 7) {
     char* end = nullptr;
     const double x = std::strtod(word.c_str(), &end);
-    if (n < 3 && end && *end == '\0') v[n] = x;
-    else numbers = false;
-    ++n;
+    if (!end || *end != '\0') throw FiberFileError(at(origin, line) + "expected " + expected + ", got '" + printable(text) + "'");
+    v.push_back(x);
   }
-  if (!numbers || n != 3)
-    throw FiberFileError(origin + ":" + std::to_string(line) + ": expected three numbers 'x y z', got '" + printable(text) + "'");
-  if (!v.allFinite()) throw FiberFileError(origin + ":" + std::to_string(line) + ": non-finite value in '" + printable(text) + "'");
+  for (double x : v)
+    if (!std::isfinite(x)) throw FiberFileError(at(origin, line) + "non-finite value in '" + printable(text) + "'");
   return v;
+}
+
+core::Vec3 parse_triple(const std::string& text, const std::string& origin, int line) {
+  const std::vector<double> v = parse_numbers(text, origin, line, "three numbers 'x y z'");
+  if (v.size() != 3) throw FiberFileError(at(origin, line) + "expected three numbers 'x y z', got '" + printable(text) + "'");
+  return {v[0], v[1], v[2]};
 }
 
 }  // namespace
@@ -57,6 +62,41 @@ std::vector<core::Vec3> read_fiber_vectors(std::istream& in, const std::string& 
     if (out.size() > 100000000) throw FiberFileError(origin + ": more than 1e8 vectors");
   }
   if (out.empty()) throw FiberFileError(origin + ": no vectors");
+  return out;
+}
+
+FiberVectors read_fiber_file(std::istream& in, const std::string& origin) {
+  const char* expected = "three numbers 'fx fy fz' or six 'fx fy fz sx sy sz'";
+  FiberVectors out;
+  std::string raw;
+  int line = 0;
+  size_t width = 0;  // numbers per line, set by the first
+  int first_line = 0;
+  while (std::getline(in, raw)) {
+    ++line;
+    const std::string text = content(raw);
+    if (text.empty()) continue;
+    const std::vector<double> v = parse_numbers(text, origin, line, expected);
+    if (v.size() != 3 && v.size() != 6) throw FiberFileError(at(origin, line) + "expected " + expected + ", got '" + printable(text) + "'");
+    if (width == 0) width = v.size(), first_line = line;
+    if (v.size() != width)
+      throw FiberFileError(at(origin, line) + std::to_string(v.size()) + " numbers, but line " + std::to_string(first_line) +
+                           " has " + std::to_string(width) + ": every line gives a fiber, or every line a fiber and a sheet");
+    const core::Vec3 f(v[0], v[1], v[2]);
+    if (f.norm() < 1e-12)
+      throw FiberFileError(at(origin, line) + "zero vector (vector " + std::to_string(out.fibers.size()) + ") is not a fiber direction");
+    if (width == 6) {
+      const core::Vec3 sh(v[3], v[4], v[5]);
+      if (sh.cross(f).norm() <= 1e-6 * sh.norm() * f.norm())
+        throw FiberFileError(at(origin, line) + "the sheet (vector " + std::to_string(out.fibers.size()) +
+                             ") is zero or parallel to its fiber");
+      out.sheets.push_back(sh);
+    }
+    out.fibers.push_back(f);
+    out.line_of.push_back(line);
+    if (out.fibers.size() > 100000000) throw FiberFileError(origin + ": more than 1e8 vectors");
+  }
+  if (out.fibers.empty()) throw FiberFileError(origin + ": no vectors");
   return out;
 }
 

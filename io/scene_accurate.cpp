@@ -65,8 +65,8 @@ void check_accurate(const Scene& sc) {
                        ": neo_hookean, guccione or holzapfel_ogden");
     if (law->needs_sheet() && sc.sheets.empty())
       throw SceneError(sc.name + ": regions[" + std::to_string(r) +
-                       "].material: holzapfel_ogden needs a sheet direction: fibers.rule (its transmural direction) "
-                       "or fibers.uniform with fibers.sheet");
+                       "].material: holzapfel_ogden needs a sheet direction: fibers.rule (its transmural direction), "
+                       "fibers.sheet (with uniform, strokes or file), or a fiber file whose lines give 'fx fy fz sx sy sz'");
   }
 }
 

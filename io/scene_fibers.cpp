@@ -125,28 +125,47 @@ std::vector<Vec3> strokes(const CheckedMap& f, const core::TetMesh& mesh, const 
   return stroke_fibers(st, mesh, lines, radius);
 }
 
-// One vector per element, or per node (then interpolated sign-blind).
+// Each element's sheet made orthogonal to its fiber (unit); an element where they are
+// parallel fails at key `path`.
+std::vector<Vec3> sheets_across(const Checks& checks, const YAML::Node& at, const std::string& path,
+                                const std::vector<Vec3>& fibers, const std::vector<Vec3>& sheets) {
+  std::vector<Vec3> out(fibers.size());
+  for (size_t e = 0; e < fibers.size(); ++e) {
+    const Vec3 f = fibers[e].normalized(), sh = sheets[e];
+    const Vec3 across = sh - sh.dot(f) * f;
+    if (across.norm() <= 1e-6 * sh.norm())
+      checks.fail(at, path, "the sheet of element " + std::to_string(e) + " is zero or parallel to its fiber");
+    out[e] = across.normalized();
+  }
+  return out;
+}
+
+// One vector per element, or per node (then interpolated sign-blind); each line may add a
+// sheet, which becomes each element's sheet the same way.
 std::vector<Vec3> file_fibers(const CheckedMap& f, const core::TetMesh& mesh, const std::string& base_dir, FiberSpec& s,
-                              std::vector<std::string>* files_read) {
+                              std::vector<std::string>* files_read, std::vector<Vec3>* sheets) {
   s.file = f.text("file");
   const std::string path = detail::resolve(s.file, base_dir);
   if (files_read) files_read->push_back(path);
   std::ifstream in = open_input(f.checks(), f["file"], "fibers.file", path);
-  const std::vector<Vec3> v = read_fiber_vectors(in, path);
-  const size_t ne = static_cast<size_t>(mesh.num_elements());
-  if (v.size() == ne) {
-    std::vector<Vec3> out(ne);
-    for (size_t e = 0; e < ne; ++e) out[e] = v[e].normalized();
-    return out;
-  }
-  if (v.size() == static_cast<size_t>(mesh.num_nodes())) {
-    std::vector<int> all(v.size());
+  const FiberVectors v = read_fiber_file(in, path);
+  const size_t ne = static_cast<size_t>(mesh.num_elements()), count = v.fibers.size();
+  std::vector<Vec3> fibers, element_sheets;
+  if (count == ne) {
+    for (const Vec3& d : v.fibers) fibers.push_back(d.normalized());
+    element_sheets = v.sheets;
+  } else if (count == static_cast<size_t>(mesh.num_nodes())) {
+    std::vector<int> all(count);
     for (size_t n = 0; n < all.size(); ++n) all[n] = static_cast<int>(n);
-    return core::interpolate_directions(mesh, all, v);
+    fibers = core::interpolate_directions(mesh, all, v.fibers);
+    if (!v.sheets.empty()) element_sheets = core::interpolate_directions(mesh, all, v.sheets);
+  } else {
+    f.checks().fail(f["file"], "fibers.file",
+                    path + " has " + std::to_string(count) + " vectors; the mesh has " + std::to_string(ne) +
+                        " elements and " + std::to_string(mesh.num_nodes()) + " nodes");
   }
-  f.checks().fail(f["file"], "fibers.file",
-                  path + " has " + std::to_string(v.size()) + " vectors; the mesh has " + std::to_string(ne) +
-                      " elements and " + std::to_string(mesh.num_nodes()) + " nodes");
+  if (sheets && !element_sheets.empty()) *sheets = sheets_across(f.checks(), f["file"], "fibers.file", fibers, element_sheets);
+  return fibers;
 }
 
 }  // namespace
@@ -156,7 +175,7 @@ std::vector<Vec3> read_fibers(const Checks& checks, const YAML::Node& node, cons
                               std::vector<Vec3>* sheets) {
   const CheckedMap f(checks, node, "fibers", {"uniform", "strokes", "rule", "file", "sheet"});
   if (sheets) sheets->clear();
-  if (f.has("sheet") && !f.has("uniform")) f.checks().fail(f["sheet"], "fibers.sheet", "goes with fibers.uniform (the rule makes its own sheet)");
+  if (f.has("sheet") && f.has("rule")) f.checks().fail(f["sheet"], "fibers.sheet", "does not go with fibers.rule (the rule makes its own sheet)");
   int kinds = 0;
   for (const char* k : {"uniform", "strokes", "rule", "file"}) kinds += f.has(k) ? 1 : 0;
   if (kinds != 1) f.fail("give exactly one of uniform, rule, strokes, file");
@@ -168,14 +187,6 @@ std::vector<Vec3> read_fibers(const Checks& checks, const YAML::Node& node, cons
       s.uniform = f.vec3("uniform");
       if (s.uniform.norm() < 1e-12) checks.fail(f["uniform"], "fibers.uniform", "must not be zero");
       fibers.assign(static_cast<size_t>(mesh.num_elements()), s.uniform.normalized());
-      if (f.has("sheet")) {
-        const Vec3 sheet = f.vec3("sheet");
-        const Vec3 across = sheet - sheet.dot(s.uniform.normalized()) * s.uniform.normalized();
-        if (across.norm() < 1e-9 * std::max(sheet.norm(), 1e-300))
-          checks.fail(f["sheet"], "fibers.sheet", "must not be zero or parallel to the fiber");
-        s.uniform_sheet = sheet;
-        if (sheets) sheets->assign(fibers.size(), across.normalized());
-      }
     } else if (f.has("rule")) {
       s.kind = FiberSpec::Kind::rule;
       fibers = rule_fibers(f, mesh, s, sheets);
@@ -184,7 +195,16 @@ std::vector<Vec3> read_fibers(const Checks& checks, const YAML::Node& node, cons
       fibers = strokes(f, mesh, base_dir, s, files_read);
     } else {
       s.kind = FiberSpec::Kind::file;
-      fibers = file_fibers(f, mesh, base_dir, s, files_read);
+      fibers = file_fibers(f, mesh, base_dir, s, files_read, sheets);
+    }
+    if (f.has("sheet")) {
+      // One sheet direction for the body, made orthogonal to each element's fiber.
+      if (sheets && !sheets->empty()) checks.fail(f["sheet"], "fibers.sheet", "the fiber file gives its own sheets");
+      const Vec3 sheet = f.vec3("sheet");
+      if (sheet.norm() < 1e-12) checks.fail(f["sheet"], "fibers.sheet", "must not be zero");
+      s.uniform_sheet = sheet;
+      const std::vector<Vec3> across = sheets_across(checks, f["sheet"], "fibers.sheet", fibers, std::vector<Vec3>(fibers.size(), sheet));
+      if (sheets) *sheets = across;
     }
   } catch (const FiberFileError& e) {
     f.fail(e.what());
@@ -202,7 +222,6 @@ YAML::Node write_fibers(const FiberSpec& s) {
   switch (s.kind) {
     case FiberSpec::Kind::uniform:
       n["uniform"] = detail::flow_vec3(s.uniform);
-      if (s.uniform_sheet) n["sheet"] = detail::flow_vec3(*s.uniform_sheet);
       break;
     case FiberSpec::Kind::rule: {
       YAML::Node r(YAML::NodeType::Map);
@@ -232,6 +251,7 @@ YAML::Node write_fibers(const FiberSpec& s) {
     }
     case FiberSpec::Kind::file: n["file"] = s.file; break;
   }
+  if (s.uniform_sheet) n["sheet"] = detail::flow_vec3(*s.uniform_sheet);
   return n;
 }
 

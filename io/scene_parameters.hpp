@@ -67,7 +67,7 @@ struct FiberSpec {
   enum class Kind { uniform, rule, strokes, file };
   Kind kind = Kind::uniform;
   core::Vec3 uniform = core::Vec3::UnitX();             ///< uniform: the direction as given.
-  std::optional<core::Vec3> uniform_sheet;              ///< uniform: fibers.sheet, when given.
+  std::optional<core::Vec3> uniform_sheet;              ///< fibers.sheet, when given (not with rule).
   core::HelixRule rule;                                 ///< rule: angles and long axis.
   std::optional<NodeSelector> inner, outer;             ///< rule: default the node sets endo, epi.
   std::vector<std::vector<core::Vec3>> stroke_lines;    ///< strokes.lines, m.

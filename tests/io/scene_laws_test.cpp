@@ -139,6 +139,49 @@ TEST(SceneLaws, HolzapfelOgdenTakesTheSheetOfAUniformField) {
   expect_error(with(ho, "sheet: [1, 1, 0]", "sheet: [2, 0, 0]"), "fibers.sheet");
 }
 
+// Sheets from a fiber file's second vector (per element or per node), or fibers.sheet with
+// a file or strokes: each made orthogonal to its element's fiber, the same axes as the
+// uniform field with the same directions gives.
+TEST(SceneLaws, HolzapfelOgdenTakesTheSheetsOfAFiberFile) {
+  const std::string ho = with(kBeam, "law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0", "law: holzapfel_ogden");
+  const std::string uniform = with(ho, "fixed:", "fibers: {uniform: [1, 0.2, 0], sheet: [0.1, 1, 0.5]}\nfixed:");
+  const AccurateProblem reference = accurate_problem(parse_scene(uniform, "test.yaml"));
+  const int elements = parse_scene(uniform, "test.yaml").model.mesh.num_elements();
+  const int nodes = parse_scene(uniform, "test.yaml").model.mesh.num_nodes();
+  const std::string dir = ::testing::TempDir();
+  auto write = [&](const std::string& name, int lines, const std::string& line) {
+    std::ofstream f(dir + name);
+    f << "# fiber and sheet\n";
+    for (int k = 0; k < lines; ++k) f << line << "\n";
+  };
+  write("per_element.txt", elements, "1 0.2 0   0.1 1 0.5");
+  write("per_node.txt", nodes, "2 0.4 0 0.2 2 1");
+  write("fibers_only.txt", elements, "1 0.2 0");
+  for (const std::string file : {"per_element.txt", "per_node.txt"}) {
+    const Scene s = parse_scene(with(ho, "fixed:", "fibers: {file: " + dir + file + "}\nfixed:"), "test.yaml");
+    ASSERT_EQ(s.sheets.size(), static_cast<size_t>(elements)) << file;
+    const AccurateProblem ap = accurate_problem(s);
+    ASSERT_EQ(ap.problem->axes.size(), reference.problem->axes.size()) << file;
+    for (size_t e = 0; e < ap.problem->axes.size(); ++e) {
+      EXPECT_NEAR(std::abs(ap.problem->axes[e].f.dot(reference.problem->axes[e].f)), 1.0, 1e-12) << file;
+      EXPECT_NEAR(std::abs(ap.problem->axes[e].s.dot(reference.problem->axes[e].s)), 1.0, 1e-12) << file;
+      EXPECT_NEAR(ap.problem->axes[e].f.dot(ap.problem->axes[e].s), 0.0, 1e-12) << file;
+    }
+  }
+  // fibers.sheet beside a file of fibers alone: the same axes again.
+  const Scene beside = parse_scene(with(ho, "fixed:", "fibers: {file: " + dir + "fibers_only.txt, sheet: [0.1, 1, 0.5]}\nfixed:"), "test.yaml");
+  EXPECT_NEAR(std::abs(accurate_problem(beside).problem->axes[0].s.dot(reference.problem->axes[0].s)), 1.0, 1e-12);
+  // Without a sheet, the law names the ways to give one.
+  expect_error(with(ho, "fixed:", "fibers: {file: " + dir + "fibers_only.txt}\nfixed:"), "fx fy fz sx sy sz");
+  // A sheet twice, a sheet with the rule, a mixed file, a parallel sheet: named.
+  expect_error(with(ho, "fixed:", "fibers: {file: " + dir + "per_element.txt, sheet: [0, 1, 0]}\nfixed:"), "the fiber file gives its own sheets");
+  write("mixed.txt", 2, "1 0 0 0 1 0");
+  { std::ofstream f(dir + "mixed.txt", std::ios::app); f << "1 0 0\n"; }
+  expect_error(with(ho, "fixed:", "fibers: {file: " + dir + "mixed.txt}\nfixed:"), "mixed.txt:4: 3 numbers, but line 2 has 6");
+  write("parallel.txt", elements, "1 0 0 -2 0 0");
+  expect_error(with(ho, "fixed:", "fibers: {file: " + dir + "parallel.txt}\nfixed:"), "parallel.txt:2: the sheet (vector 0) is zero or parallel");
+}
+
 TEST(SceneLaws, AQuadraticGmshFileKeepsItsCurvedEdgeNodes) {
   // A gmsh file of 10-node tetrahedra (one edge node moved off its chord): the scene runs on
   // the file's element mesh at order 2, not on a promotion of its corners.
