@@ -63,7 +63,8 @@ def write_table(df: pd.DataFrame, out_dir: str):
 MARKDOWN_COLUMNS = [("elements", "tets", None), ("l2_err", "L2 err", 3), ("probe_err", "probe err", 3),
                     ("probe_err_m", "probe err mm", 3), ("final_err", "final err", 3),
                     ("volume_err", "volume err", 3), ("ef_err_pp", "EF err pp", 3), ("phase_err_ms", "phase ms", 3),
-                    ("engine_s_per_sim_s", "engine s / sim s", 3), ("wall_s_per_sim_s", "wall s / sim s", 3),
+                    ("settled_err", "settled err", 3), ("settled_err_m", "settled err mm", 3),
+                    ("engine_s_per_sim_s", "engine s / sim s", 3), ("wall_s", "wall s", 3), ("wall_s_per_sim_s", "wall s / sim s", 3),
                     ("steps_per_s", "steps/s", 4), ("recovered_steps", "recovered", None),
                     ("peak_rss_mb", "peak MB", 3)]
 
@@ -82,7 +83,7 @@ def markdown(df: pd.DataFrame) -> str:
                  str(r["status"]) + (f": {r['reason']}" if r["status"] not in ("completed",) and r.get("reason") else "")]
         for c, _, digits in cols:
             v = r.get(c)
-            if c == "probe_err_m" and _finite(v):
+            if c in ("probe_err_m", "settled_err_m") and _finite(v):
                 v = v * 1e3
             cells.append(_number(v, digits))
         cells.append("P" if front and bool(r.get(front)) else "")
