@@ -116,12 +116,13 @@ void write_law(const LawParameters& l, YAML::Node& n) {
 
 // The small-strain stiffness is the law's tangent dP/dF at F = I (where P = 0, so the
 // geometric part vanishes), read in a frame with the fiber along z (core::Material's
-// convention); an incompressible law takes the default penalty for its bulk part.
+// convention); an incompressible law takes kLinearisedBulkFactor times its shear modulus
+// for its bulk part.
 core::Material linearised_material(const LawParameters& law, double density_kg_m3) {
   using core::hyperelastic::Response;
   const core::hyperelastic::MaterialAxes axes{core::Vec3::UnitZ(), core::Vec3::UnitX(), core::Vec3::UnitY()};
   Response r = core::hyperelastic::isochoric_response(law, axes, core::Mat3::Identity(), true);
-  const double kappa = law.incompressible ? default_bulk_modulus(law) : law.bulk_modulus_pa;
+  const double kappa = law.incompressible ? kLinearisedBulkFactor * shear_scale(law) : law.bulk_modulus_pa;
   const core::hyperelastic::Volumetric v = core::hyperelastic::volumetric_penalty(kappa, 1.0);
   core::hyperelastic::add_volumetric_stress(v.dU, v.d2U, core::Mat3::Identity(), r, true);
   // A(i + 3 J, k + 3 L) = C_iJkL at F = I.

@@ -36,9 +36,17 @@ void write_law(const core::hyperelastic::LawParameters& law, YAML::Node& node);
 /// The small-strain limit of a law (its tangent at rest), as the real-time tier's material.
 core::Material linearised_material(const core::hyperelastic::LawParameters& law, double density_kg_m3);
 /// The bulk modulus a compressible law gets when the scene gives none:
-/// kDefaultBulkFactor times its small-strain shear modulus (Poisson's ratio about 0.495), Pa.
-inline constexpr double kDefaultBulkFactor = 100.0;
+/// kDefaultBulkFactor times its small-strain shear modulus (Poisson's ratio about 0.499), Pa.
+/// From the study across tiers (docs/speed-accuracy-tiers.md): of 10 to 500 times, 400
+/// keeps the Land problems' error lowest in the worse of the two (3-4%; 100 times left
+/// 11% on problem 2), at 1.5 to 2 times the Newton cost of 100 times.
+inline constexpr double kDefaultBulkFactor = 400.0;
 double default_bulk_modulus(const core::hyperelastic::LawParameters& law);
+/// The bulk modulus of an incompressible law's small-strain limit on the real-time tier:
+/// kLinearisedBulkFactor times its shear modulus (Poisson's ratio about 0.495), which the
+/// linear tetrahedra and their solver carry without the worse locking and conditioning of
+/// a stiffer limit.
+inline constexpr double kLinearisedBulkFactor = 100.0;
 
 /// regions[i].damping.
 core::RayleighDamping read_damping(const Checks& checks, const YAML::Node& node, const std::string& path);
