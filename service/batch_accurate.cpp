@@ -79,55 +79,13 @@ int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out) {
   return r.converged ? 0 : 1;
 }
 
-namespace {
-
-// One mass-proportional damping for the body: the accurate tier's step takes a single
-// alpha; stiffness-proportional damping is not available there.
-double mass_damping(const io::Scene& sc) {
-  double alpha = -1;
-  for (size_t r = 0; r < sc.model.region_damping.size(); ++r) {
-    const core::RayleighDamping& d = sc.model.region_damping[r];
-    if (d.stiffness_s != 0)
-      throw std::invalid_argument("regions[" + std::to_string(r) +
-                                  "].damping.stiffness: the accurate tier's time steps take mass damping only");
-    if (alpha >= 0 && d.mass_1_s != alpha)
-      throw std::invalid_argument("regions[" + std::to_string(r) +
-                                  "].damping.mass: the accurate tier's time steps take one mass damping for the body");
-    alpha = d.mass_1_s;
-  }
-  return std::max(alpha, 0.0);
-}
-
-// The loads at time t: each traction at its ramp, the contraction's tension per element.
-core::hyperelastic::Loading loading_at(const io::Scene& sc, double t_s, std::vector<double>& tension) {
-  core::hyperelastic::Loading l;
-  for (const core::SurfaceLoad& load : sc.model.loads.surface_loads)
-    l.pressure_factors.push_back(load.ramp_s > 0 ? std::min(1.0, t_s / load.ramp_s) : 1.0);
-  const core::Contraction& c = sc.model.contraction;
-  if (c.enabled()) {
-    const auto& regions = sc.model.mesh.regions();
-    tension.resize(regions.size());
-    for (size_t e = 0; e < regions.size(); ++e)
-      tension[e] = c.tension(regions[e], c.element_delay_s.empty() ? 0.0 : c.element_delay_s[e], t_s);
-    l.active_tension_pa = &tension;
-  } else {
-    l.active_factor = 0;
-  }
-  return l;
-}
-
-}  // namespace
-
 // A dynamic run on the accurate tier: backward-Euler steps solved by Newton, to the
 // scene's end time, with a status line every fifth of the run.
 int run_dynamic_accurate(const io::Scene& sc, int steps, json& report, std::ostream& out) {
   char line[512];
   const auto t0 = std::chrono::steady_clock::now();
   const io::AccurateProblem ap = io::accurate_problem(sc);
-  core::hyperelastic::DynamicSettings ds;
-  ds.dt_s = sc.settings.dt_s;
-  ds.mass_damping_1_s = mass_damping(sc);
-  ds.newton = ap.newton;
+  const core::hyperelastic::DynamicSettings ds = io::accurate_dynamic_settings(sc, ap);
   core::hyperelastic::DynamicSolver solver(*ap.problem, ds);
   std::snprintf(line, sizeof line, "dynamic: accurate tier, order %d, %d nodes, %d unknowns, step %.4g s, %d steps\n",
                 ap.mesh->order(), ap.mesh->num_nodes(), solver.totals().equations, ds.dt_s, steps);
@@ -137,7 +95,7 @@ int run_dynamic_accurate(const io::Scene& sc, int steps, json& report, std::ostr
   std::string reason;
   int done = 0, most_iterations = 0;
   for (int s = 1; s <= steps && !stop_signals.caught(); ++s) {
-    const core::hyperelastic::DynamicStepReport r = solver.step(loading_at(sc, s * ds.dt_s, tension));
+    const core::hyperelastic::DynamicStepReport r = solver.step(io::accurate_loading(sc, s * ds.dt_s, tension));
     if (!r.converged) {
       reason = "step " + std::to_string(s) + " at t = " + std::to_string(s * ds.dt_s) + " s: " + r.message;
       break;

@@ -85,23 +85,23 @@ void RunDriver::resume(const ResumeFrom& from) {
 
 const core::StepReport& RunDriver::step(bool record_failure) {
   control_.before_step();
-  last_ = simulator().step();
+  last_ = engine().step();
   cavities_valid_ = false;
   if (writer_ && (record_failure || last_.status != core::StepStatus::failed)) record(last_);
   return last_;
 }
 
 std::vector<double> RunDriver::activation() const {
-  const core::Simulator& sim = simulator();
-  if (sim.active_tension().empty()) return {};
-  return sim.model().contraction.activation(sim.model().mesh.regions(), sim.active_tension());
+  const Engine& e = engine();
+  if (e.active_tension().empty()) return {};
+  return e.model().contraction.activation(e.model().mesh.regions(), e.active_tension());
 }
 
 const CavityVolumes& RunDriver::cavity_volumes() {
   if (!cavities_valid_) {
     cavities_.clear();
     for (const io::CavityMeasure& c : control_.scene().cavities)
-      cavities_.emplace_back(c.name, core::cavity_volume(c.surface, simulator().positions()));
+      cavities_.emplace_back(c.name, core::cavity_volume(c.surface, engine().positions()));
     cavities_valid_ = true;
   }
   return cavities_;
