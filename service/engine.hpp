@@ -59,6 +59,32 @@ class Engine {
   const AccurateEngine* accurate() const { return const_cast<Engine*>(this)->accurate(); }
 };
 
+/// The real-time tier: core::Simulator as it is, every call forwarded.
+class RealTimeEngine final : public Engine {
+ public:
+  /// Owns a simulator of `scene` at rest. @throws std::invalid_argument as Simulator does.
+  explicit RealTimeEngine(const io::Scene& scene);
+  /// Steps `sim`, which the caller owns and keeps alive (a test or benchmark that drives
+  /// its own simulator and records it).
+  explicit RealTimeEngine(core::Simulator& sim) : sim_(sim) {}
+  core::StepReport step() override { return sim_.step(); }
+  double time_s() const override { return sim_.time_s(); }
+  long step_count() const override { return sim_.step_count(); }
+  double dt_s() const override { return sim_.settings().dt_s; }
+  Eigen::Map<const core::Positions> positions() const override { return sim_.positions(); }
+  Eigen::Map<const core::Positions> velocities() const override { return sim_.velocities(); }
+  const core::Model& model() const override { return sim_.model(); }
+  const std::vector<double>& active_tension() const override { return sim_.active_tension(); }
+  EngineCheckpoint checkpoint() const override { return sim_.checkpoint(); }
+  void restore(const EngineCheckpoint& c) override;
+  void reset() override { sim_.reset(); }
+  core::Simulator* real_time() override { return &sim_; }
+
+ private:
+  std::unique_ptr<core::Simulator> owned_;
+  core::Simulator& sim_;
+};
+
 /// The engine of a scene's tier, at rest. @throws std::invalid_argument (io::SceneError)
 /// naming what the tier cannot take.
 std::unique_ptr<Engine> make_engine(const io::Scene& scene);

@@ -42,6 +42,7 @@ class AccurateEngine final : public Engine {
   const core::Positions& element_positions() const { return solver_->positions(); }
   const core::Positions& element_velocities() const { return solver_->velocities(); }
   const Eigen::VectorXd& pressures() const { return solver_->pressures(); }
+  const core::hyperelastic::DynamicSettings& settings() const { return solver_->settings(); }
 
  private:
   Eigen::Map<const core::Positions> corner(const core::Positions& x) const {
