@@ -43,6 +43,8 @@ class AccurateEngine final : public Engine {
   const core::Positions& element_velocities() const { return solver_->velocities(); }
   const Eigen::VectorXd& pressures() const { return solver_->pressures(); }
   const core::hyperelastic::DynamicSettings& settings() const { return solver_->settings(); }
+  /// Newton's totals over the steps of this engine (since it was built or rebuilt).
+  core::hyperelastic::NewtonReport totals() const { return solver_->totals(); }
 
  private:
   Eigen::Map<const core::Positions> corner(const core::Positions& x) const {
