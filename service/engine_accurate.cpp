@@ -74,9 +74,9 @@ void AccurateEngine::reset() {
   update_tension();
 }
 
-std::unique_ptr<AccurateEngine> AccurateEngine::rebuilt(const io::Scene& running) const {
+std::unique_ptr<AccurateEngine> AccurateEngine::rebuilt(const io::Scene& running) {
   auto next = std::make_unique<AccurateEngine>(running);
-  next->solver_->restore(solver_->state());
+  next->solver_->continue_from(*solver_);
   next->nodal_forces_n_ = nodal_forces_n_;
   next->update_tension();
   return next;

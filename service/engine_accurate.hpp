@@ -32,10 +32,11 @@ class AccurateEngine final : public Engine {
 
   /// Builds the engine of `running` (the same scene with changed parameters) and carries
   /// this one's state over: positions, velocities, pressures, time, steps, point forces and
-  /// the lagged factor (the parameters change the answer from the next step on).
+  /// the lagged factor, taken over without factorising again (this engine is left without
+  /// it); the parameters change the answer from the next step on.
   /// @throws std::invalid_argument as the constructor, or when the state does not fit the
   /// new problem (another mesh); this engine is unchanged then.
-  std::unique_ptr<AccurateEngine> rebuilt(const io::Scene& running) const;
+  std::unique_ptr<AccurateEngine> rebuilt(const io::Scene& running);
 
   /// The element mesh (corner nodes first) and the full state on it.
   const core::hyperelastic::ElementMesh& element_mesh() const { return *problem_.mesh; }

@@ -201,7 +201,7 @@ void RunControl::refresh_loads() {
 }
 
 void RunControl::rebuild_accurate(io::SceneParameters before) {
-  const AccurateEngine* accurate = engine_->accurate();
+  AccurateEngine* accurate = engine_->accurate();
   if (accurate == nullptr) return;
   scene_text_.clear();
   try {

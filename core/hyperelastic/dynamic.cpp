@@ -67,6 +67,12 @@ DynamicStepReport DynamicSolver::step(const Loading& loading) {
 
 DynamicState DynamicSolver::state() const { return {x_, v_, p_, t_s_, steps_, linear_.state()}; }
 
+void DynamicSolver::continue_from(DynamicSolver& previous) {
+  DynamicState s{previous.x_, previous.v_, previous.p_, previous.t_s_, previous.steps_, {}};
+  restore(s);  // checks the sizes; no factor yet
+  linear_.take_memory(previous.linear_);
+}
+
 void DynamicSolver::restore(const DynamicState& s) {
   const auto bad = [](const std::string& m) { throw std::invalid_argument("dynamic state: " + m); };
   if (s.x.cols() != x_.cols() || s.v.cols() != x_.cols() || s.x.rows() != 3 || s.v.rows() != 3)

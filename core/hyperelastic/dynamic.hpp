@@ -59,6 +59,10 @@ class DynamicSolver {
   /// @throws std::invalid_argument on a size mismatch or a non-finite value (the solver is
   /// unchanged then).
   void restore(const DynamicState& state);
+  /// Continues from `previous` (a solver of the same mesh and unknowns whose problem's
+  /// constants, loads or settings differ): its state, and its lagged factor taken over
+  /// without factorising again. @throws std::invalid_argument as restore (nothing moves then).
+  void continue_from(DynamicSolver& previous);
   const DynamicSettings& settings() const { return settings_; }
   /// Lumped node masses, kg.
   const Eigen::VectorXd& node_masses() const { return assembler_.node_masses(); }

@@ -78,6 +78,17 @@ bool TangentSolver::factorise(const SparseMatrix& K) {
   return have_factor_;
 }
 
+void TangentSolver::take_memory(TangentSolver& other) {
+  std::swap(factor_, other.factor_);
+  std::swap(have_factor_, other.have_factor_);
+  std::swap(analysed_, other.analysed_);
+  std::swap(factored_, other.factored_);
+  other.factor_ = std::make_unique<Factor>();
+  other.have_factor_ = false;
+  other.analysed_ = SparseMatrix();
+  other.factored_ = SparseMatrix();
+}
+
 // The symbolic analysis reads the values too (UMFPACK's pivot preferences), so it is made
 // again from the very matrix it was made from, then the factor from its own.
 void TangentSolver::restore(const State& state) {

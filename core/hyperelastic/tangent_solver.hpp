@@ -42,6 +42,10 @@ class TangentSolver {
   /// @throws std::invalid_argument when its factored matrix is singular.
   void restore(const State& state);
 
+  /// Takes `other`'s memory (its analysis, factor and their matrices) without factorising
+  /// again: what restore(other.state()) gives, at no cost. `other` is left without a factor.
+  void take_memory(TangentSolver& other);
+
   int factorisations() const { return factorisations_; }
   int krylov_iterations() const { return krylov_iterations_; }
   double seconds() const { return seconds_; }

@@ -7,6 +7,8 @@
 #include "core/static_solver.hpp"
 #include "io/scene_accurate.hpp"
 #include "service/engine_accurate.hpp"
+
+#include "accurate_beam_scene.hpp"
 #include "io/scene.hpp"
 
 #include <gtest/gtest.h>
@@ -291,30 +293,8 @@ TEST(RunControl, ParameterStateAfterCommandsResumesBitForBit) {
 }
 
 
-// A small accurate scene: Land's beam problem (Guccione, incompressible, Taylor-Hood) on a
-// coarse order-2 mesh, its follower pressure ramped in over 0.1 s, stepped in time.
-const char* kAccurateBeam = R"(
-name: accurate-beam
-mesh: {generator: box, size: [0.010, 0.001, 0.001], cells: [4, 1, 1], order: 2}
-regions:
-  - name: myocardium
-    select: all
-    material: {law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0, incompressible: true, density: 1000.0}
-    damping: {mass: 20.0}
-fibers: {uniform: [1, 0, 0]}
-fixed:
-  - plane: {axis: x, value: 0.0}
-loads:
-  tractions:
-    - on: {plane: {axis: z, value: 0.0}}
-      pressure: 4.0
-      follower: true
-      ramp: 0.1
-solver: {dt: 0.01}
-)";
-
 io::Scene accurate_beam(std::vector<std::string> overrides = {}) {
-  return io::parse_scene(kAccurateBeam, "accurate-beam", "", overrides);
+  return io::parse_scene(testing::kAccurateBeamScene, "accurate-beam", "", overrides);
 }
 
 // Steps through the run's engine (either tier); @return the corner positions.
@@ -424,6 +404,28 @@ TEST(RunControl, AForceCommandLoadsTheAccurateTier) {
   const CommandResult bad = pushed.apply("apply_force", R"({"target": {"node": 100000}, "force": [0, 0, 1]})");
   EXPECT_FALSE(bad.accepted);
   EXPECT_NE(bad.reason.find("target.node"), std::string::npos) << bad.reason;
+}
+
+
+// set_contraction drives the accurate tier's active tension: given at rest, the run of a
+// scene with that contraction, bit for bit; the published activation follows the twitch.
+TEST(RunControl, AContractionCommandDrivesTheAccurateTiersActiveTension) {
+  const std::vector<std::string> gentle = {"loads.tractions=[]",
+                                           "contraction={peak_tension: 200, heart_rate: 60, twitch: {shape: sine, systole: 0.3}}"};
+  RunControl live(accurate_beam(gentle));
+  const CommandResult r = live.apply("set_contraction", R"({"peak_tension": 400})");
+  ASSERT_TRUE(r.accepted) << r.reason;
+  std::vector<std::string> stronger = gentle;
+  stronger[1] = "contraction={peak_tension: 400, heart_rate: 60, twitch: {shape: sine, systole: 0.3}}";
+  RunControl fresh(accurate_beam(stronger));
+  RunControl unchanged(accurate_beam(gentle));
+  const core::Positions a = step_engine(live, 10), b = step_engine(fresh, 10), c = step_engine(unchanged, 10);
+  EXPECT_EQ((a - b).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT((a - c).cwiseAbs().maxCoeff(), 1e-6);  // twice the tension: a different shape
+  ASSERT_EQ(live.engine().active_tension().size(), static_cast<size_t>(live.engine().model().mesh.num_elements()));
+  EXPECT_GT(live.engine().active_tension()[0], 0.0);  // 0.1 s into the beat's rise
+  EXPECT_LE(live.engine().active_tension()[0], 400.0);
+  EXPECT_DOUBLE_EQ(live.peak_tension_pa(), 400.0);
 }
 
 }  // namespace

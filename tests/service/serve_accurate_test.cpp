@@ -5,6 +5,7 @@
 // replays on the bus, exports to meshio as tetra10 and renders.
 
 #include "clients/ctl/client.hpp"
+#include "accurate_beam_scene.hpp"
 #include "io/scene.hpp"
 #include "process_support.hpp"
 #include "service/archive/archive.hpp"
@@ -25,34 +26,10 @@ namespace {
 using namespace std::chrono_literals;
 using clients::Client;
 
-// Land's beam problem (Guccione, incompressible, Taylor-Hood P2/P1) on a coarse order-2
-// mesh, its follower pressure ramped in over 0.05 s; the probe on a corner node of the tip.
-const char* kScene = R"(
-name: served-accurate-beam
-mesh: {generator: box, size: [0.010, 0.001, 0.001], cells: [4, 1, 1], order: 2}
-regions:
-  - name: myocardium
-    select: all
-    material: {law: guccione, C: 2000.0, b_f: 8.0, b_t: 2.0, b_fs: 4.0, incompressible: true, density: 1000.0}
-    damping: {mass: 20.0}
-fibers: {uniform: [1, 0, 0]}
-fixed:
-  - plane: {axis: x, value: 0.0}
-loads:
-  tractions:
-    - on: {plane: {axis: z, value: 0.0}}
-      pressure: 4.0
-      follower: true
-      ramp: 0.05
-solver: {dt: 0.01}
-probes:
-  tip: [0.010, 0.001, 0.001]
-)";
-
 class ServeAccurate : public ::testing::Test {
  protected:
   static void SetUpTestSuite() { setenv("CYCLONEDDS_URI", FIBERFEM_DDS_URI, 1); }
-  void SetUp() override { write_file(scene_file(), kScene); }
+  void SetUp() override { write_file(scene_file(), kAccurateBeamScene); }
   std::string scene_file() const { return dir_.file("beam.yaml"); }
   static std::string unique(const std::string& name) { return name + "-" + std::to_string(getpid()); }
 
