@@ -3,9 +3,10 @@
 /// run control, the service loop, its status, recording and replay run both tiers alike.
 /// The real-time tier is core::Simulator itself (its step untouched: one virtual call per
 /// step); the accurate tier (material.law, mesh.order 2) is the hyperelastic time stepper
-/// (service/engine_accurate.hpp). Positions the service publishes and archives as frames
-/// are those of the scene's corner mesh (model().mesh): the first columns of an order-2
-/// state, since the element mesh numbers corner nodes first.
+/// (service/engine_accurate.hpp). positions() are those of the scene's corner mesh
+/// (model().mesh), what the service publishes: the first columns of an order-2 state, since
+/// the element mesh numbers corner nodes first (its archive frames hold every node:
+/// AccurateEngine::element_positions).
 
 #include "core/hyperelastic/dynamic.hpp"
 #include "core/simulator.hpp"
