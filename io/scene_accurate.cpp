@@ -142,6 +142,45 @@ AccurateProblem accurate_problem(const Scene& sc) {
   return out;
 }
 
+core::hyperelastic::DynamicSettings accurate_dynamic_settings(const Scene& sc, const AccurateProblem& problem) {
+  // One mass-proportional damping for the body: the accurate tier's step takes a single
+  // alpha; stiffness-proportional damping is not available there.
+  double alpha = -1;
+  for (size_t r = 0; r < sc.model.region_damping.size(); ++r) {
+    const core::RayleighDamping& d = sc.model.region_damping[r];
+    if (d.stiffness_s != 0)
+      throw SceneError(sc.name + ": regions[" + std::to_string(r) +
+                       "].damping.stiffness: the accurate tier's time steps take mass damping only");
+    if (alpha >= 0 && d.mass_1_s != alpha)
+      throw SceneError(sc.name + ": regions[" + std::to_string(r) +
+                       "].damping.mass: the accurate tier's time steps take one mass damping for the body");
+    alpha = d.mass_1_s;
+  }
+  core::hyperelastic::DynamicSettings ds;
+  ds.dt_s = sc.settings.dt_s;
+  ds.mass_damping_1_s = std::max(alpha, 0.0);
+  ds.newton = problem.newton;
+  return ds;
+}
+
+core::hyperelastic::Loading accurate_loading(const Scene& sc, double t_s, std::vector<double>& tension) {
+  core::hyperelastic::Loading l;
+  for (const core::SurfaceLoad& load : sc.model.loads.surface_loads)
+    l.pressure_factors.push_back(load.ramp_s > 0 ? std::min(1.0, t_s / load.ramp_s) : 1.0);
+  const core::Contraction& c = sc.model.contraction;
+  if (!c.enabled()) {
+    tension.clear();
+    l.active_factor = 0;
+    return l;
+  }
+  const auto& regions = sc.model.mesh.regions();
+  tension.resize(regions.size());
+  for (size_t e = 0; e < regions.size(); ++e)
+    tension[e] = c.tension(regions[e], c.element_delay_s.empty() ? 0.0 : c.element_delay_s[e], t_s);
+  l.active_tension_pa = &tension;
+  return l;
+}
+
 core::Vec3 accurate_probe_displacement(const ElementMesh& mesh, const Probe& probe, const core::Positions& x) {
   const Eigen::Vector3d xi(probe.weights(1), probe.weights(2), probe.weights(3));
   const core::hyperelastic::TetShape sh = core::hyperelastic::tet_shape(mesh.order(), xi);

@@ -2,7 +2,7 @@
 /// @file A scene on the accurate tier (material.law, mesh.order 2) as the problem its
 /// Newton solver takes.
 
-#include "core/hyperelastic/newton.hpp"
+#include "core/hyperelastic/dynamic.hpp"
 #include "io/scene.hpp"
 
 #include <memory>
@@ -23,6 +23,16 @@ void check_accurate(const Scene& scene);
 /// region's peak tension, pressure loads on the boundary faces they name.
 /// @throws SceneError for what the accurate tier does not take (point forces, traction vectors).
 AccurateProblem accurate_problem(const Scene& scene);
+
+/// The time-step settings of an accurate scene: solver.dt, the Newton keys, and the one
+/// mass damping of the body. @throws SceneError when a region has stiffness damping or
+/// the regions' mass dampings differ (the accurate tier's step takes one alpha).
+core::hyperelastic::DynamicSettings accurate_dynamic_settings(const Scene& scene, const AccurateProblem& problem);
+
+/// The loads of an accurate scene at time t_s: each traction at its ramp, the contraction's
+/// tension per element (written into `tension_pa`, which the result points to; emptied when
+/// the contraction is off).
+core::hyperelastic::Loading accurate_loading(const Scene& scene, double t_s, std::vector<double>& tension_pa);
 
 /// A probe's displacement interpolated with the element's shape functions (all its nodes), m.
 core::Vec3 accurate_probe_displacement(const core::hyperelastic::ElementMesh& mesh, const Probe& probe,

@@ -65,6 +65,17 @@ void read_constants(const CheckedMap& m, LawParameters& l) {
 
 }  // namespace
 
+const std::vector<std::string>& law_material_keys() {
+  static const std::vector<std::string> keys = [] {
+    std::vector<std::string> all;
+    for (LawKind kind : {LawKind::neo_hookean, LawKind::guccione, LawKind::holzapfel_ogden})
+      for (const std::string& k : law_keys(kind))
+        if (std::find(all.begin(), all.end(), k) == all.end()) all.push_back(k);
+    return all;
+  }();
+  return keys;
+}
+
 double default_bulk_modulus(const LawParameters& law) { return kDefaultBulkFactor * shear_scale(law); }
 
 core::Material read_law_material(const Checks& checks, const YAML::Node& node, const std::string& path, MaterialSpec& spec) {

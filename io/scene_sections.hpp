@@ -31,6 +31,8 @@ YAML::Node write_material(const MaterialSpec& spec);
 /// A material with a `law` key (read_material hands it over): the law's constants into
 /// spec.law; returns the linear material of its small-strain limit.
 core::Material read_law_material(const Checks& checks, const YAML::Node& node, const std::string& path, MaterialSpec& spec);
+/// Every key a material with a law may have (of any law).
+const std::vector<std::string>& law_material_keys();
 /// The law's keys into a material mapping.
 void write_law(const core::hyperelastic::LawParameters& law, YAML::Node& node);
 /// The small-strain limit of a law (its tangent at rest), as the real-time tier's material.

@@ -6,6 +6,8 @@
 
 #include "core/hyperelastic/dynamic.hpp"
 #include "io/scene_accurate.hpp"
+#include "service/engine_accurate.hpp"
+#include "service/run_driver.hpp"
 #include "service/stop_signals.hpp"
 
 #include <algorithm>
@@ -79,81 +81,43 @@ int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out) {
   return r.converged ? 0 : 1;
 }
 
-namespace {
-
-// One mass-proportional damping for the body: the accurate tier's step takes a single
-// alpha; stiffness-proportional damping is not available there.
-double mass_damping(const io::Scene& sc) {
-  double alpha = -1;
-  for (size_t r = 0; r < sc.model.region_damping.size(); ++r) {
-    const core::RayleighDamping& d = sc.model.region_damping[r];
-    if (d.stiffness_s != 0)
-      throw std::invalid_argument("regions[" + std::to_string(r) +
-                                  "].damping.stiffness: the accurate tier's time steps take mass damping only");
-    if (alpha >= 0 && d.mass_1_s != alpha)
-      throw std::invalid_argument("regions[" + std::to_string(r) +
-                                  "].damping.mass: the accurate tier's time steps take one mass damping for the body");
-    alpha = d.mass_1_s;
-  }
-  return std::max(alpha, 0.0);
-}
-
-// The loads at time t: each traction at its ramp, the contraction's tension per element.
-core::hyperelastic::Loading loading_at(const io::Scene& sc, double t_s, std::vector<double>& tension) {
-  core::hyperelastic::Loading l;
-  for (const core::SurfaceLoad& load : sc.model.loads.surface_loads)
-    l.pressure_factors.push_back(load.ramp_s > 0 ? std::min(1.0, t_s / load.ramp_s) : 1.0);
-  const core::Contraction& c = sc.model.contraction;
-  if (c.enabled()) {
-    const auto& regions = sc.model.mesh.regions();
-    tension.resize(regions.size());
-    for (size_t e = 0; e < regions.size(); ++e)
-      tension[e] = c.tension(regions[e], c.element_delay_s.empty() ? 0.0 : c.element_delay_s[e], t_s);
-    l.active_tension_pa = &tension;
-  } else {
-    l.active_factor = 0;
-  }
-  return l;
-}
-
-}  // namespace
-
-// A dynamic run on the accurate tier: backward-Euler steps solved by Newton, to the
-// scene's end time, with a status line every fifth of the run.
-int run_dynamic_accurate(const io::Scene& sc, int steps, json& report, std::ostream& out) {
+// A dynamic run on the accurate tier: backward-Euler steps solved by Newton (the
+// RunDriver's AccurateEngine, so --resume and --archive work as on the real-time tier), to
+// the scene's end time, with a status line every fifth of the run.
+int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, json& report, std::ostream& out) {
   char line[512];
   const auto t0 = std::chrono::steady_clock::now();
-  const io::AccurateProblem ap = io::accurate_problem(sc);
-  core::hyperelastic::DynamicSettings ds;
-  ds.dt_s = sc.settings.dt_s;
-  ds.mass_damping_1_s = mass_damping(sc);
-  ds.newton = ap.newton;
-  core::hyperelastic::DynamicSolver solver(*ap.problem, ds);
-  std::snprintf(line, sizeof line, "dynamic: accurate tier, order %d, %d nodes, %d unknowns, step %.4g s, %d steps\n",
-                ap.mesh->order(), ap.mesh->num_nodes(), solver.totals().equations, ds.dt_s, steps);
+  RunDriver run(sc, Parameters::fixed);
+  const AccurateEngine& engine = *run.engine().accurate();
+  const core::hyperelastic::ElementMesh& mesh = engine.element_mesh();
+  std::snprintf(line, sizeof line, "dynamic: accurate tier, order %d, %d nodes, %d unknowns, step %.4g s, %d steps\n", mesh.order(),
+                mesh.num_nodes(), engine.totals().equations, engine.dt_s(), steps);
   out << line;
   const StopSignals stop_signals;  // an interrupted run still writes its report
-  std::vector<double> tension;
+  start_run(run, o, report, out);
   std::string reason;
-  int done = 0, most_iterations = 0;
-  for (int s = 1; s <= steps && !stop_signals.caught(); ++s) {
-    const core::hyperelastic::DynamicStepReport r = solver.step(loading_at(sc, s * ds.dt_s, tension));
-    if (!r.converged) {
-      reason = "step " + std::to_string(s) + " at t = " + std::to_string(s * ds.dt_s) + " s: " + r.message;
+  int done = static_cast<int>(engine.step_count()), most_iterations = 0;
+  for (int s = done + 1; s <= steps && !stop_signals.caught(); ++s) {
+    const long frames_before = run.recorded_frames();
+    const core::StepReport& r = run.step(/*record_failure=*/false);
+    if (r.status == core::StepStatus::failed) {
+      reason = "step " + std::to_string(s) + " at t = " + std::to_string(engine.time_s() + engine.dt_s()) + " s: " + r.message;
       break;
     }
-    ++done;
-    most_iterations = std::max(most_iterations, r.iterations);
+    done = s;
+    if (run.recorded_frames() != frames_before) log_frame(run, o, out);
+    most_iterations = std::max(most_iterations, r.solver_iterations);
     if (steps >= 5 && s % (steps / 5) != 0 && s != steps) continue;
-    const core::Vec3 u = sc.probes.empty() ? core::Vec3::Zero() : io::accurate_probe_displacement(*ap.mesh, sc.probes[0], solver.positions());
-    std::snprintf(line, sizeof line, "t=%7.3f s  step %5d/%d  %s%s%.3e m  Newton %d\n", solver.time_s(), s, steps,
+    const core::Vec3 u = sc.probes.empty() ? core::Vec3::Zero() : io::accurate_probe_displacement(mesh, sc.probes[0], engine.element_positions());
+    std::snprintf(line, sizeof line, "t=%7.3f s  step %5d/%d  %s%s%.3e m  Newton %d\n", engine.time_s(), s, steps,
                   sc.probes.empty() ? "" : sc.probes[0].name.c_str(), sc.probes.empty() ? "|u| n/a " : " |u| ", u.norm(),
-                  r.iterations);
+                  r.solver_iterations);
     out << line << std::flush;
   }
+  stop_run_recording(run, o, report, out);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const core::hyperelastic::NewtonReport totals = solver.totals();
-  const json probes = probes_report(sc, *ap.mesh, solver.positions(), out);
+  const core::hyperelastic::NewtonReport totals = engine.totals();
+  const json probes = probes_report(sc, mesh, engine.element_positions(), out);
   const bool completed = done == steps;
   std::snprintf(line, sizeof line,
                 "dynamic: %s, %d of %d steps in %.2f s (%.1f steps/s), %d Newton iterations (at most %d in a step), %d "
@@ -165,10 +129,10 @@ int run_dynamic_accurate(const io::Scene& sc, int steps, json& report, std::ostr
   report["status"] = completed ? "completed" : (reason.empty() ? "interrupted" : "failed");
   report["reason"] = reason;
   report["dynamic"] = {{"tier", "accurate"},
-                       {"order", ap.mesh->order()},
+                       {"order", mesh.order()},
                        {"unknowns", totals.equations},
                        {"steps", done},
-                       {"time_s", solver.time_s()},
+                       {"time_s", engine.time_s()},
                        {"newton_iterations", totals.iterations},
                        {"most_newton_iterations", most_iterations},
                        {"factorisations", totals.factorisations},

@@ -91,36 +91,6 @@ int requested_steps(const io::Scene& sc, const BatchOptions& o) {
   return static_cast<int>(wanted);
 }
 
-void log_frame(const RunDriver& run, const BatchOptions& o, std::ostream& out) {
-  if (o.log_frames) out << "frame " << run.recorded_frames() << " step " << run.simulator().step_count() << "\n" << std::flush;
-}
-
-// Resume (the archived checkpoint replaces the state; the run continues to the same end
-// step), then recording, which starts with the state the loop starts from.
-void start(RunDriver& run, const BatchOptions& o, json& report, std::ostream& out) {
-  if (!o.resume.empty()) {
-    run.resume(o.resume);
-    const core::Simulator& sim = run.simulator();
-    char line[512];
-    std::snprintf(line, sizeof line, "resume: from %s, checkpoint at t = %.6g s (step %ld)\n", o.resume.path.c_str(), sim.time_s(),
-                  sim.step_count());
-    out << line;
-    report["resumed_from"] = {{"archive", o.resume.path}, {"time_s", sim.time_s()}, {"step", sim.step_count()}};
-  }
-  if (!o.archive.enabled) return;
-  if (!has_archive()) throw std::runtime_error("--archive: this fiberfem was built without HDF5 (FIBERFEM_WITH_HDF5)");
-  run.start_recording(o.archive, o.resume.empty() ? o.source : "resume:" + o.resume.path);
-  log_frame(run, o, out);
-  report["archive"] = {{"path", o.archive.path}};
-}
-
-void stop_recording(RunDriver& run, const BatchOptions& o, json& report, std::ostream& out) {
-  if (!run.recording()) return;
-  const long frames = run.stop_recording();
-  out << "archive: " << o.archive.path << ": " << frames << " frames\n";
-  report["archive"]["frames"] = frames;
-}
-
 // "t=... s  step S/N  PROBE |u| ... m  iters I  STATUS  R steps/s".
 void step_line(char* line, size_t size, const io::Scene& sc, const core::Simulator& sim, const core::StepReport& r, int s,
                int steps, double engine_s) {
@@ -156,7 +126,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
   detail::RunSeries series(sc, run.simulator());
   detail::StepTotals totals;
   totals.max_kinetic_j = e0.kinetic_j;
-  start(run, o, report, out);
+  detail::start_run(run, o, report, out);
   const int first_step = static_cast<int>(run.simulator().step_count()) + 1;
   std::string status = "completed", reason;
   int done = 0;
@@ -177,14 +147,14 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
       }
       done = s;
       series.add(run.simulator(), run.cavity_volumes());
-      if (run.recorded_frames() != frames_before) log_frame(run, o, out);
+      if (run.recorded_frames() != frames_before) detail::log_frame(run, o, out);
       totals.add(r);
       char line[512];
       step_line(line, sizeof line, sc, run.simulator(), r, s, steps, totals.total.total_s);
       progress.show(s, line);
     }
   }
-  stop_recording(run, o, report, out);
+  detail::stop_run_recording(run, o, report, out);
   const core::Simulator& sim = run.simulator();
   const double wall = seconds_since(t0);
   char line[512];
@@ -226,13 +196,13 @@ int run_batch(const io::Scene& sc, const BatchOptions& o, std::ostream& out) {
                 quality.min_dihedral_deg, quality.max_dihedral_deg, is_static ? "static" : "dynamic");
   out << line << std::flush;
   for (const std::string& w : sc.warnings) out << "fiberfem: warning: " << w << "\n";
-  if (sc.accurate() && !is_static && (!o.resume.empty() || o.archive.enabled || o.compare_static))
+  if (sc.accurate() && !is_static && o.compare_static)
     throw std::invalid_argument("run: scene '" + sc.name +
-                                "' is on the accurate tier (material.law or mesh.order 2): its dynamic runs are not "
-                                "recorded, resumed or compared with a static solve yet");
+                                "' is on the accurate tier (material.law or mesh.order 2): --compare-static is for the "
+                                "real-time tier (run it with --static to compare)");
   json report = detail::report_head(sc, o, quality, is_static);
   const int rc = is_static         ? run_static(sc, report, out)
-                 : sc.accurate()   ? detail::run_dynamic_accurate(sc, requested_steps(sc, o), report, out)
+                 : sc.accurate()   ? detail::run_dynamic_accurate(sc, o, requested_steps(sc, o), report, out)
                                    : run_dynamic(sc, o, report, out);
   if (!o.report_path.empty()) {
     detail::write_report(o.report_path, report);

@@ -6,6 +6,7 @@
 
 #include "io/scene_sections.hpp"
 #include "service/command_args.hpp"
+#include "service/engine_accurate.hpp"
 
 #include <nlohmann/json.hpp>
 #include <yaml-cpp/yaml.h>
@@ -21,25 +22,11 @@ using detail::Args;
 using detail::join;
 using detail::Reject;
 
-namespace {
-
-// The service steps the real-time tier; a scene of the accurate tier would run on its
-// laws' small-strain limits without a word, so it is refused by name.
-io::Scene real_time(io::Scene scene) {
-  if (scene.accurate())
-    throw std::invalid_argument("scene '" + scene.name +
-                                "' is on the accurate tier (material.law or mesh.order 2): `fiberfem run` solves it; "
-                                "the service, replay and recording do not run accurate scenes yet");
-  return scene;
-}
-
-}  // namespace
-
 RunControl::RunControl(io::Scene scene, const io::EmbeddedFiles* files)
-    : scene_(real_time(std::move(scene))),
+    : scene_(std::move(scene)),
       scene_doc_(scene_.yaml_text),
       params_(scene_.parameters),
-      sim_(std::make_unique<core::Simulator>(scene_.model, scene_.settings)),
+      engine_(make_engine(scene_)),
       base_loads_(scene_.model.loads) {
   files_ = files;
 }
@@ -86,8 +73,8 @@ void RunControl::restore_parameter_state(const std::string& text) {
       if (n < 0 || n >= s.model.mesh.num_nodes()) throw std::invalid_argument("parameter state: force node out of range");
     forces[f.at("name").get<std::string>()] = a;
   }
-  auto sim = std::make_unique<core::Simulator>(s.model, s.settings);
-  sim_ = std::move(sim);
+  auto engine = make_engine(s);
+  engine_ = std::move(engine);
   base_loads_ = s.model.loads;
   forces_ = std::move(forces);
   scene_doc_ = doc;
@@ -105,6 +92,8 @@ const std::vector<RunControl::Entry>& RunControl::table() {
     std::vector<std::string> material = {"region", "density"};
     for (const std::string& k : io::material_keys())
       if (k != "density") material.push_back(k);
+    for (const std::string& k : io::law_material_keys())
+      if (std::find(material.begin(), material.end(), k) == material.end()) material.push_back(k);
     return std::vector<Entry>{
         {"pause", {}, &RunControl::on_pause, true},
         {"resume", {}, &RunControl::on_resume, true},
@@ -140,13 +129,19 @@ const std::vector<std::string>& RunControl::kinds() {
   return k;
 }
 
+core::Simulator& RunControl::simulator() {
+  core::Simulator* sim = engine_->real_time();
+  if (sim == nullptr) throw std::logic_error("scene '" + scene_.name + "' runs on the accurate tier: it has no real-time simulator");
+  return *sim;
+}
+
 double RunControl::heart_rate_bpm() const {
-  const auto& c = sim_->model().contraction;
+  const auto& c = engine_->model().contraction;
   return c.enabled() ? 60.0 / c.period_s : 0.0;
 }
 
 double RunControl::peak_tension_pa() const {
-  const auto& c = sim_->model().contraction;
+  const auto& c = engine_->model().contraction;
   if (!c.enabled()) return 0.0;
   return *std::max_element(c.region_peak_pa.begin(), c.region_peak_pa.end());
 }
@@ -178,7 +173,7 @@ CommandResult RunControl::apply(const std::string& kind, const std::string& args
 void RunControl::before_step() {
   bool changed = false;
   for (auto it = forces_.begin(); it != forces_.end();) {
-    if (sim_->time_s() >= it->second.until_s - 1e-12) {
+    if (engine_->time_s() >= it->second.until_s - 1e-12) {
       it = forces_.erase(it);
       changed = true;
     } else {
@@ -201,7 +196,21 @@ void RunControl::refresh_loads() {
   core::Loads loads = base_loads_;
   for (const auto& [name, f] : forces_)
     for (size_t i = 0; i < f.nodes.size(); ++i) loads.point_forces.push_back({f.nodes[i], f.force_n[i]});
-  sim_->set_loads(loads);
+  if (core::Simulator* sim = engine_->real_time()) sim->set_loads(loads);
+  else engine_->accurate()->set_point_forces(loads.point_forces);
+}
+
+void RunControl::rebuild_accurate(io::SceneParameters before) {
+  AccurateEngine* accurate = engine_->accurate();
+  if (accurate == nullptr) return;
+  scene_text_.clear();
+  try {
+    engine_ = accurate->rebuilt(running_scene());
+  } catch (...) {
+    params_ = std::move(before);
+    scene_text_.clear();
+    throw;
+  }
 }
 
 }  // namespace fiberfem::service

@@ -13,6 +13,7 @@
 
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
+#include "service/engine.hpp"
 
 #include <functional>
 #include <limits>
@@ -42,18 +43,18 @@ struct AppliedForce {
 
 class RunControl {
  public:
-  /// Builds the simulator of `scene`; `files` are the in-memory files a built-in scene
-  /// reads (kept for re-parsing the running scene). @throws std::invalid_argument as
-  /// Simulator does.
+  /// Builds the engine of `scene`'s tier (service/engine.hpp); `files` are the in-memory
+  /// files a built-in scene reads (kept for re-parsing the running scene).
+  /// @throws std::invalid_argument as the engine does.
   explicit RunControl(io::Scene scene, const io::EmbeddedFiles* files = nullptr);
 
   /// The running parameters as JSON: {"scene_yaml": the scene with its parameter sections
   /// written from the running ones (every accepted parameter command in), "forces": [...]}.
-  /// With the simulator's checkpoint it resumes the run exactly (restore_parameter_state,
-  /// then Simulator::restore).
+  /// With the engine's checkpoint it resumes the run exactly (restore_parameter_state,
+  /// then Engine::restore).
   std::string parameter_state_json() const;
-  /// Rebuilds the simulator for a parameter state (the scene text re-parsed, forces
-  /// re-applied); the state is then the rest state until Simulator::restore.
+  /// Rebuilds the engine for a parameter state (the scene text re-parsed, forces
+  /// re-applied); the state is then the rest state until Engine::restore.
   /// @throws std::invalid_argument (io::SceneError) naming what is wrong.
   void restore_parameter_state(const std::string& json);
   /// The running scene (scene_yaml parsed again): what a recording started now records.
@@ -68,8 +69,12 @@ class RunControl {
   /// one ordered step down.
   bool take_step_permission();
 
-  core::Simulator& simulator() { return *sim_; }
-  const core::Simulator& simulator() const { return *sim_; }
+  /// The running engine (a command may replace it: do not keep the reference).
+  Engine& engine() { return *engine_; }
+  const Engine& engine() const { return *engine_; }
+  /// The real-time simulator. @throws std::logic_error on the accurate tier.
+  core::Simulator& simulator();
+  const core::Simulator& simulator() const { return const_cast<RunControl*>(this)->simulator(); }
   const io::Scene& scene() const { return scene_; }
   bool paused() const { return paused_; }
   bool shutdown_requested() const { return shutdown_; }
@@ -123,6 +128,10 @@ class RunControl {
   CommandResult on_set_solver(const detail::Args& a);
   RecordingHandler recording_;
   void refresh_loads();
+  // The accurate engine built again from the running scene (its state carried over) after
+  // a command changed params_; on failure params_ goes back to `before`. Nothing on the
+  // real-time tier, whose setters changed the simulator already.
+  void rebuild_accurate(io::SceneParameters before);
 
   io::Scene scene_;             // as loaded (reset with parameters restores it)
   std::string scene_doc_;       // the scene text the parameter sections are written into (loaded or restored)
@@ -133,11 +142,11 @@ class RunControl {
   const std::string& scene_text() const;
   const io::EmbeddedFiles* files_ = nullptr;
   struct Saved {
-    core::SimulatorCheckpoint state;
+    EngineCheckpoint state;
     std::string parameters;
   };
   std::map<std::string, Saved> checkpoints_;  // named, in memory (checkpoint / restore)
-  std::unique_ptr<core::Simulator> sim_;
+  std::unique_ptr<Engine> engine_;
   core::Loads base_loads_;  // the scene's loads with commanded gravity (forces come on top)
   std::map<std::string, AppliedForce> forces_;
   bool paused_ = false;

@@ -36,11 +36,10 @@ CommandResult RunControl::on_shutdown(const Args&) {
 }
 
 CommandResult RunControl::on_reset(const Args& a) {
-  core::Simulator& sim = *sim_;
   const bool parameters = a.has("parameters") && a.boolean("parameters");
   if (parameters) {
-    auto fresh = std::make_unique<core::Simulator>(scene_.model, scene_.settings);
-    sim_ = std::move(fresh);
+    auto fresh = make_engine(scene_);
+    engine_ = std::move(fresh);
     scene_doc_ = scene_.yaml_text;
     params_ = scene_.parameters;
     base_loads_ = scene_.model.loads;
@@ -48,16 +47,15 @@ CommandResult RunControl::on_reset(const Args& a) {
     ++topology_version_;
     return {true, "reset to rest with the scene's parameters"};
   }
-  sim.reset();
+  engine_->reset();
   return {true, "reset to rest"};
 }
 
 CommandResult RunControl::on_checkpoint(const Args& a) {
-  core::Simulator& sim = *sim_;
   const std::string name = a.has("name") ? a.text("name") : "default";
   if (name.empty()) throw Reject("'name' must not be empty");
-  checkpoints_[name] = Saved{sim.checkpoint(), parameter_state_json()};
-  return {true, "checkpoint '" + name + "' at t = " + std::to_string(sim.time_s()) + " s"};
+  checkpoints_[name] = Saved{engine_->checkpoint(), parameter_state_json()};
+  return {true, "checkpoint '" + name + "' at t = " + std::to_string(engine_->time_s()) + " s"};
 }
 
 CommandResult RunControl::on_restore(const Args& a) {
@@ -70,8 +68,8 @@ CommandResult RunControl::on_restore(const Args& a) {
   }
   // Parameters changed since: rebuild for the saved ones first (the state only fits them).
   if (it->second.parameters != parameter_state_json()) restore_parameter_state(it->second.parameters);
-  sim_->restore(it->second.state);
-  return {true, "restored '" + name + "' (t = " + std::to_string(sim_->time_s()) + " s)"};
+  engine_->restore(it->second.state);
+  return {true, "restored '" + name + "' (t = " + std::to_string(engine_->time_s()) + " s)"};
 }
 
 }  // namespace fiberfem::service

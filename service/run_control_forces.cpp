@@ -15,8 +15,8 @@ using detail::Reject;
 using core::Vec3;
 
 CommandResult RunControl::on_apply_force(const Args& a) {
-  core::Simulator& sim = *sim_;
-  const core::TetMesh& mesh = sim_->model().mesh;
+  const Engine& sim = *engine_;
+  const core::TetMesh& mesh = sim.model().mesh;
   const auto& names = scene_.region_names;
   if (!a.has("target")) throw Reject("needs 'target': {node | nodes | node_set | region | point}");
   const YAML::Node t = a["target"];

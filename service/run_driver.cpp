@@ -69,11 +69,11 @@ void RunDriver::resume(const ResumeFrom& from) {
   // A served run's checkpoints carry the running scene and forces; a batch run's, none
   // (its scene is the archived one).
   std::string params;
-  const core::SimulatorCheckpoint cp = reader.read_checkpoint(k, &params);
+  const EngineCheckpoint cp = reader.read_engine_checkpoint(k, &params);
   try {
     if (parameters_ == Parameters::commanded && params.find("scene_yaml") != std::string::npos)
       control_.restore_parameter_state(params);
-    simulator().restore(cp);
+    engine().restore(cp);
   } catch (const std::invalid_argument& e) {  // another scene's archive, or its parameters
     throw std::invalid_argument("--resume " + from.path + ": " + e.what() + " (the archive is of another scene or mesh)");
   }
@@ -85,23 +85,23 @@ void RunDriver::resume(const ResumeFrom& from) {
 
 const core::StepReport& RunDriver::step(bool record_failure) {
   control_.before_step();
-  last_ = simulator().step();
+  last_ = engine().step();
   cavities_valid_ = false;
   if (writer_ && (record_failure || last_.status != core::StepStatus::failed)) record(last_);
   return last_;
 }
 
 std::vector<double> RunDriver::activation() const {
-  const core::Simulator& sim = simulator();
-  if (sim.active_tension().empty()) return {};
-  return sim.model().contraction.activation(sim.model().mesh.regions(), sim.active_tension());
+  const Engine& e = engine();
+  if (e.active_tension().empty()) return {};
+  return e.model().contraction.activation(e.model().mesh.regions(), e.active_tension());
 }
 
 const CavityVolumes& RunDriver::cavity_volumes() {
   if (!cavities_valid_) {
     cavities_.clear();
     for (const io::CavityMeasure& c : control_.scene().cavities)
-      cavities_.emplace_back(c.name, core::cavity_volume(c.surface, simulator().positions()));
+      cavities_.emplace_back(c.name, core::cavity_volume(c.surface, engine().positions()));
     cavities_valid_ = true;
   }
   return cavities_;
@@ -129,15 +129,15 @@ void RunDriver::start_recording(const io::ArchiveSettings& a, const std::string&
     // The header holds the scene as it runs now (commands merged in).
     const RunControl& rc = control_;
     const io::Scene running = rc.parameter_version() == 0 ? rc.scene() : rc.running_scene();
-    writer_ = std::make_unique<archive::ArchiveWriter>(ao, running, simulator(), source);
+    writer_ = std::make_unique<archive::ArchiveWriter>(ao, running, engine(), source);
     recording_path_ = a.path;
     if (parameters_ == Parameters::commanded) {
       const std::string params = rc.parameter_state_json();
       writer_->set_parameter_state(params);
-      writer_->checkpoint(simulator(), params);
+      writer_->checkpoint(engine(), params);
     }
     core::StepReport initial;
-    initial.time_s = simulator().time_s();
+    initial.time_s = engine().time_s();
     cavities_valid_ = false;
     record(initial);
   } catch (...) {
@@ -151,7 +151,7 @@ long RunDriver::recorded_frames() const { return writer_ ? writer_->frames() : 0
 
 void RunDriver::record(const core::StepReport& r) {
   const auto t0 = std::chrono::steady_clock::now();
-  writer_->record_frame(simulator(), r, {cavity_volumes()});
+  writer_->record_frame(engine(), r, {cavity_volumes()});
   record_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
 }
 
@@ -167,7 +167,7 @@ long RunDriver::stop_recording() {
   // Not recording any more, whatever the last checkpoint or the close throw.
   const std::unique_ptr<archive::ArchiveWriter> writer = std::move(writer_);
   recording_path_.clear();
-  writer->checkpoint(simulator(), checkpoint_parameters());
+  writer->checkpoint(engine(), checkpoint_parameters());
   const long frames = writer->frames();
   writer->close();
   return frames;

@@ -56,8 +56,8 @@ enum class Parameters {
 
 class RunDriver {
  public:
-  /// Builds the simulator of `scene` at rest. `files`: the in-memory files of a built-in
-  /// scene. @throws std::invalid_argument as core::Simulator does.
+  /// Builds the engine of `scene`'s tier at rest. `files`: the in-memory files of a
+  /// built-in scene. @throws std::invalid_argument as the engine does.
   RunDriver(const io::Scene& scene, Parameters parameters, const io::EmbeddedFiles* files = nullptr);
   ~RunDriver();
   RunDriver(const RunDriver&) = delete;
@@ -70,7 +70,10 @@ class RunDriver {
 
   RunControl& control() { return control_; }
   const RunControl& control() const { return control_; }
-  /// The running simulator (a command may replace it: do not keep the reference).
+  /// The running engine (a command may replace it: do not keep the reference).
+  Engine& engine() { return control_.engine(); }
+  const Engine& engine() const { return control_.engine(); }
+  /// The running real-time simulator. @throws std::logic_error on the accurate tier.
   core::Simulator& simulator() { return control_.simulator(); }
   const core::Simulator& simulator() const { return control_.simulator(); }
 

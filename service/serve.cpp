@@ -31,11 +31,11 @@ class ServeLoop {
  public:
   ServeLoop(const ServeOptions& o, RunDriver& run, RunEndpoints& bus, std::ostream& out)
       : o_(o), run_(run), bus_(bus), out_(out),
-        status_(o, run.control().scene().name, run.simulator().time_s(), out),
+        status_(o, run.control().scene().name, run.engine().time_s(), out),
         recording_(run, o.source + " (served as " + bus.run_id() + ")", out),
-        pacer_(o.realtime, o.real_time_factor, run.simulator().time_s()),
+        pacer_(o.realtime, o.real_time_factor, run.engine().time_s()),
         states_(o.publish_hz, Clock::now()) {
-    const core::TetMesh& mesh = run.simulator().model().mesh;
+    const core::TetMesh& mesh = run.engine().model().mesh;
     if (o.surface_only) state_nodes_ = mesh.boundary_nodes();
     publish_topology();
   }
@@ -51,10 +51,10 @@ class ServeLoop {
       if (run_.control().topology_version() != topology_version_) publish_topology();
       if (run_.control().shutdown_requested()) return "shut down by command";
       if (stop_signals.caught()) return std::string("stopped by ") + stop_signals.name();
-      if (o_.until_s > 0 && run_.simulator().time_s() >= o_.until_s - 1e-9) return "reached t = " + std::to_string(o_.until_s) + " s";
+      if (o_.until_s > 0 && run_.engine().time_s() >= o_.until_s - 1e-9) return "reached t = " + std::to_string(o_.until_s) + " s";
       // Step unless paused, or in real time ahead of the wall clock (a command woke the
       // wait early, and the step is not due yet).
-      const bool due = pacer_.due(run_.simulator().time_s());
+      const bool due = pacer_.due(run_.engine().time_s());
       const bool stepped = due && run_.control().take_step_permission();
       if (stepped) {
         status_.add_step(run_.step());
@@ -71,7 +71,7 @@ class ServeLoop {
     publish_state();
     status_.publish(bus_, run_, "stopped");
     if (o_.status_line) std::fprintf(stderr, "\n");
-    const core::Simulator& sim = run_.simulator();
+    const Engine& sim = run_.engine();
     out_ << "fiberfem serve: " << stop_reason << "; " << sim.step_count() << " steps, t = " << sim.time_s() << " s in "
          << seconds_between(start, Clock::now()) << " s wall, " << status_.recovered() << " steps recovered, " << status_.failed()
          << " failed";
@@ -81,7 +81,7 @@ class ServeLoop {
 
  private:
   void publish_topology() {
-    const core::Simulator& sim = run_.simulator();
+    const Engine& sim = run_.engine();
     const io::Scene& scene = run_.control().scene();
     TopologyData t = topology_record(sim.model().mesh, sim.model().fibers, sim.model().fixed_dofs, scene.region_names, state_nodes_);
     t.scene_name = scene.name;
@@ -94,19 +94,19 @@ class ServeLoop {
   // recording with the step it took effect at. @return how many were handled.
   int take_commands() {
     auto apply = [this](const std::string& kind, const std::string& args, const std::string& id) {
-      const long step = run_.simulator().step_count();
-      const double time = run_.simulator().time_s();
+      const long step = run_.engine().step_count();
+      const double time = run_.engine().time_s();
       CommandResult r = run_.control().apply(kind, args);  // the recording commands reach recording_ through it
       if (!r.accepted) status_.set_message("rejected " + kind + ": " + r.reason);
       recording_.after_command(step, time, id, kind, args, r);
       return CommandReply{r.accepted, r.reason};
     };
-    auto stamp = [this] { return std::make_pair(static_cast<unsigned long>(run_.simulator().step_count()), run_.control().parameter_version()); };
+    auto stamp = [this] { return std::make_pair(static_cast<unsigned long>(run_.engine().step_count()), run_.control().parameter_version()); };
     return bus_.handle_commands(apply, stamp, wall_ns(o_.command_budget_ms * 1e-3));
   }
 
   void publish_state() {
-    const core::Simulator& sim = run_.simulator();
+    const Engine& sim = run_.engine();
     bus_.publish_state(static_cast<unsigned long>(sim.step_count()), sim.time_s(), run_.control().parameter_version(),
                        sim.positions(), state_nodes_, run_.activation());
   }
@@ -127,12 +127,12 @@ class ServeLoop {
   // Real time waits for the wall clock (listening for commands meanwhile); paused waits
   // for a command; behind by more than 0.25 s re-anchors (report, don't catch up).
   void pace(bool due, bool stepped) {
-    const double sim_t = run_.simulator().time_s();
+    const double sim_t = run_.engine().time_s();
     if (!due) {
       bus_.wait_for_command(wall_ns(std::max(0.0, pacer_.ahead_s(sim_t))));
     } else if (!stepped) {
       bus_.wait_for_command(std::chrono::milliseconds(20));
-      pacer_.anchor(run_.simulator().time_s());
+      pacer_.anchor(run_.engine().time_s());
     } else if (pacer_.realtime()) {
       const double ahead = pacer_.ahead_s(sim_t);
       if (ahead > 0) bus_.wait_for_command(wall_ns(ahead));
@@ -170,8 +170,8 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
   RunDriver run(scene, Parameters::commanded, options.files);
   if (!options.resume.empty()) {
     run.resume(options.resume);
-    out << "fiberfem serve: resumed from " << options.resume.path << " at t = " << run.simulator().time_s() << " s (step "
-        << run.simulator().step_count() << ")\n";
+    out << "fiberfem serve: resumed from " << options.resume.path << " at t = " << run.engine().time_s() << " s (step "
+        << run.engine().step_count() << ")\n";
   }
   if (options.start_paused) run.control().apply("pause", "{}");
   const std::string run_id = options.run_id.empty() ? default_run_id(scene.name) : options.run_id;
@@ -185,7 +185,7 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
   const auto start = Clock::now();
   const StopSignals stop_signals;  // until the last state and status are out
   ServeLoop loop(options, run, *bus, out);
-  const core::TetMesh& mesh = run.simulator().model().mesh;
+  const core::TetMesh& mesh = run.engine().model().mesh;
   out << "fiberfem serve: run '" << run_id << "', scene '" << scene.name << "' (" << options.source << "), " << mesh.num_elements()
       << " tets, " << mesh.num_nodes() << " nodes, "
       << (options.realtime ? "real time x" + std::to_string(options.real_time_factor).substr(0, 4) : std::string("as fast as possible"))

@@ -24,7 +24,7 @@ void ServeStatus::add_step(const core::StepReport& r) {
 void ServeStatus::publish(RunEndpoints& bus, RunDriver& run, const std::string& state) {
   const auto now = Clock::now();
   const double wall = std::max(1e-9, seconds_between(period_start_, now));
-  const core::Simulator& sim = run.simulator();
+  const Engine& sim = run.engine();
   const RunControl& rc = run.control();
   const core::StepReport& last = run.last_step();
   StatusData st;
@@ -51,7 +51,7 @@ void ServeStatus::publish(RunEndpoints& bus, RunDriver& run, const std::string& 
   st.parameter_version = rc.parameter_version();
   st.heart_rate_bpm = rc.heart_rate_bpm();
   st.peak_tension_pa = rc.peak_tension_pa();
-  st.dt_s = sim.settings().dt_s;
+  st.dt_s = sim.dt_s();
   const std::vector<double> record_ms = run.take_record_ms();
   if (run.recording()) {
     st.recording = run.recording_path();

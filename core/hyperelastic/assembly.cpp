@@ -90,6 +90,7 @@ Assembler::Assembler(const Problem& problem) : problem_(problem), governor_(std:
     }
   }
   build_pattern();
+  build_colours();
   diagonal_slot_.resize(static_cast<size_t>(num_free_u_));
   for (int eq = 0; eq < num_free_u_; ++eq) {
     const int* inner = pattern_.innerIndexPtr();
@@ -123,6 +124,24 @@ Assembler::Assembler(const Problem& problem) : problem_(problem), governor_(std:
   // Active tension has no external force; its scale is T_a times a face area.
   const double length = std::cbrt(std::max(volume_, 1e-300));
   reference_load_ = std::max({(ext + faces).head(num_free_u_).norm(), active * length * length, 1e-300});
+}
+
+// Greedy colouring: each element takes the first colour that no element sharing a node
+// with it has. Elements of one colour write disjoint equations, so they scatter without
+// atomics, and every entry of R and K is summed in colour order whatever the thread count.
+void Assembler::build_colours() {
+  const ElementMesh& mesh = *problem_.mesh;
+  std::vector<std::vector<int>> node_colours(static_cast<size_t>(num_nodes_));
+  for (int e = 0; e < mesh.num_elements(); ++e) {
+    const auto& nodes = mesh.elements()[static_cast<size_t>(e)];
+    std::vector<char> taken(colours_.size() + 1, 0);
+    for (int a = 0; a < nodes_per_element_; ++a)
+      for (int c : node_colours[static_cast<size_t>(nodes[static_cast<size_t>(a)])]) taken[static_cast<size_t>(c)] = 1;
+    const int colour = static_cast<int>(std::find(taken.begin(), taken.end(), 0) - taken.begin());
+    if (colour == static_cast<int>(colours_.size())) colours_.emplace_back();
+    colours_[static_cast<size_t>(colour)].push_back(e);
+    for (int a = 0; a < nodes_per_element_; ++a) node_colours[static_cast<size_t>(nodes[static_cast<size_t>(a)])].push_back(colour);
+  }
 }
 
 void Assembler::build_pattern() {
@@ -198,9 +217,10 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, con
     Eigen::VectorXd Rl(ls);
     Eigen::MatrixXd Kl(ls, ls);
     Eigen::Matrix<double, 10, 3> xe;
-    Eigen::VectorXd Rthread = Eigen::VectorXd::Zero(num_equations());
+    for (const std::vector<int>& colour : colours_) {
 #pragma omp for schedule(static)
-    for (int e = 0; e < ne; ++e) {
+    for (int i = 0; i < static_cast<int>(colour.size()); ++i) {
+      const int e = colour[static_cast<size_t>(i)];
       const auto& nodes = mesh.elements()[static_cast<size_t>(e)];
       const LawParameters& law =
           problem_.region_laws[static_cast<size_t>(problem_.element_region[static_cast<size_t>(e)])];
@@ -274,11 +294,11 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, con
       for (int a = 0; a < n; ++a)
         for (int i = 0; i < 3; ++i) {
           const int eq = equation_of_dof(3 * nodes[static_cast<size_t>(a)] + i);
-          if (eq >= 0) Rthread(eq) += Rl(3 * a + i);
+          if (eq >= 0) R(eq) += Rl(3 * a + i);
         }
       for (int m = 0; m < pressures_per_element_; ++m) {
         const int eq = pressure_eq_[static_cast<size_t>(e)][static_cast<size_t>(m)];
-        if (eq >= 0) Rthread(eq) += Rl(3 * n + m);
+        if (eq >= 0) R(eq) += Rl(3 * n + m);
       }
       if (K == nullptr) continue;
       const int* slot = &slots_[static_cast<size_t>(e) * static_cast<size_t>(ls * ls)];
@@ -287,18 +307,23 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, con
         for (int i = 0; i < ls; ++i) {
           const int s = slot[j * ls + i];
           if (s < 0) continue;
-#pragma omp atomic
           values[s] += Kl(i, j);
         }
+    }  // the for's barrier: a colour is complete before the next one starts
     }
-#pragma omp critical
-    R += Rthread;
   }
   if (threads_ == 0 && K != nullptr)
     governor_.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), true);
   ev.energy_j = energy;
   ev.inverted_elements = inverted;
   add_faces(x, loading, R, K);
+  if (loading.nodal_forces_n != nullptr) {
+    const double* f = loading.nodal_forces_n->data();
+    for (int d = 0; d < 3 * num_nodes_; ++d) {
+      const int eq = free_eq_[static_cast<size_t>(d)];
+      if (eq >= 0) R(eq) -= f[d];
+    }
+  }
   ev.finite = R.allFinite();
   return ev;
 }

@@ -4,6 +4,10 @@
 /// when a region is incompressible, the follower-pressure load and its load stiffness,
 /// body force and active tension, all at one load factor.
 ///
+/// Elements are assembled colour by colour (no two elements of a colour share a node), so
+/// every entry of R and K is summed in the same order on any number of threads: results do
+/// not depend on the thread count, and a checkpointed run resumes bit for bit.
+///
 /// Unknowns ("equations") are the free displacement components, numbered node-major, then
 /// the pressures of a mixed problem: one per corner node of an incompressible element at
 /// order 2 (Taylor-Hood P2/P1), one per incompressible element at order 1 (P1/P0, which
@@ -38,6 +42,9 @@ struct Loading {
   /// times active_factor).
   const std::vector<double>* active_tension_pa = nullptr;
   double active_factor = 1.0;
+  /// Forces on nodes (3 x nodes, N, at their full value, no factor scales them); nullptr:
+  /// none. Fixed components take no force.
+  const Positions* nodal_forces_n = nullptr;
   /// All loads at one load factor.
   static Loading at_factor(double lambda) { return {lambda, {}, lambda, nullptr, lambda}; }
 };
@@ -93,6 +100,7 @@ class Assembler {
     double dV = 0;                      ///< Weight times rest Jacobian, m^3.
   };
   void build_pattern();
+  void build_colours();
   int equation_of_dof(int dof) const { return free_eq_[static_cast<size_t>(dof)]; }
   void add_faces(const Positions& x, const Loading& loading, Eigen::VectorXd& R, SparseMatrix* K) const;
 
@@ -113,6 +121,8 @@ class Assembler {
   Eigen::VectorXd body_force_;                   ///< rho g N_a integrated, per free equation, at lambda 1.
   std::vector<int> slots_;                       ///< Per element, local (row, col) -> value index.
   mutable SparseMatrix pattern_;
+  /// Elements by colour: no two of one colour share a node (build_colours).
+  std::vector<std::vector<int>> colours_;
   int threads_ = 0;
   Eigen::VectorXd masses_;           ///< Per node, kg.
   std::vector<int> diagonal_slot_;   ///< Per free displacement equation: its diagonal's value index.

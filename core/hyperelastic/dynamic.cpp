@@ -15,7 +15,7 @@ void DynamicSettings::validate() const {
 }
 
 DynamicSolver::DynamicSolver(const Problem& problem, const DynamicSettings& settings)
-    : problem_(problem), settings_(settings), assembler_(problem) {
+    : problem_(problem), settings_(settings), assembler_(problem), linear_(/*keeps_state=*/true) {
   settings_.validate();
   if (problem.region_density_kg_m3.empty())
     throw std::invalid_argument("dynamic: every region needs a density > 0");
@@ -63,6 +63,33 @@ DynamicStepReport DynamicSolver::step(const Loading& loading) {
   t_s_ += h;
   ++steps_;
   return rep;
+}
+
+DynamicState DynamicSolver::state() const { return {x_, v_, p_, t_s_, steps_, linear_.state()}; }
+
+void DynamicSolver::continue_from(DynamicSolver& previous) {
+  DynamicState s{previous.x_, previous.v_, previous.p_, previous.t_s_, previous.steps_, {}};
+  restore(s);  // checks the sizes; no factor yet
+  linear_.take_memory(previous.linear_);
+}
+
+void DynamicSolver::restore(const DynamicState& s) {
+  const auto bad = [](const std::string& m) { throw std::invalid_argument("dynamic state: " + m); };
+  if (s.x.cols() != x_.cols() || s.v.cols() != x_.cols() || s.x.rows() != 3 || s.v.rows() != 3)
+    bad("positions and velocities for " + std::to_string(s.x.cols()) + " nodes, the problem has " + std::to_string(x_.cols()));
+  if (s.p.size() != p_.size())
+    bad(std::to_string(s.p.size()) + " pressures, the problem has " + std::to_string(p_.size()));
+  if (!s.x.allFinite() || !s.v.allFinite() || !s.p.allFinite() || !std::isfinite(s.time_s)) bad("a value is not finite");
+  const int n = assembler_.num_equations();
+  for (const SparseMatrix* m : {&s.linear.analysed, &s.linear.factored})
+    if (m->rows() != 0 && (m->rows() != n || m->cols() != n))
+      bad("a lagged factor of " + std::to_string(m->rows()) + " equations, the problem has " + std::to_string(n));
+  linear_.restore(s.linear);
+  x_ = s.x;
+  v_ = s.v;
+  p_ = s.p;
+  t_s_ = s.time_s;
+  steps_ = s.steps;
 }
 
 NewtonReport DynamicSolver::totals() const {

@@ -26,6 +26,17 @@ struct DynamicStepReport {
   std::string message;  ///< Why a step failed ("" when it converged).
 };
 
+/// Everything later steps depend on besides the problem and the settings: restoring it
+/// into a solver of the same problem continues the run bit for bit.
+struct DynamicState {
+  Positions x;              ///< Positions, 3 x nodes, m.
+  Positions v;              ///< Velocities, 3 x nodes, m/s.
+  Eigen::VectorXd p;        ///< Mixed pressures (Assembler::num_pressures()), Pa.
+  double time_s = 0;        ///< Simulation time, s.
+  long steps = 0;           ///< Steps taken.
+  TangentSolver::State linear;  ///< The lagged factor's matrices.
+};
+
 class DynamicSolver {
  public:
   /// Starts at rest (rest positions, zero velocity and pressure). Every region needs a
@@ -41,6 +52,21 @@ class DynamicSolver {
   const Positions& positions() const { return x_; }
   const Positions& velocities() const { return v_; }
   const Eigen::VectorXd& pressures() const { return p_; }
+  /// The state between steps (copies, including the lagged factor's matrices).
+  DynamicState state() const;
+  /// Continues from a state() of a solver of the same problem (or of one that differs in
+  /// its laws' constants, loads or settings only).
+  /// @throws std::invalid_argument on a size mismatch or a non-finite value (the solver is
+  /// unchanged then).
+  void restore(const DynamicState& state);
+  /// Continues from `previous` (a solver of the same mesh and unknowns whose problem's
+  /// constants, loads or settings differ): its state, and its lagged factor taken over
+  /// without factorising again. @throws std::invalid_argument as restore (nothing moves then).
+  void continue_from(DynamicSolver& previous);
+  const DynamicSettings& settings() const { return settings_; }
+  /// Lumped node masses, kg.
+  const Eigen::VectorXd& node_masses() const { return assembler_.node_masses(); }
+
   /// Totals over the steps so far (iterations, factorisations, times).
   NewtonReport totals() const;
 

@@ -7,6 +7,7 @@
 #endif
 
 #include <chrono>
+#include <stdexcept>
 
 namespace fiberfem::core::hyperelastic {
 
@@ -42,22 +43,25 @@ class LaggedLU {
 }  // namespace
 
 struct TangentSolver::Factor {
+  Factor();
   LU lu;
   bool analysed = false;
 };
 
-TangentSolver::TangentSolver() : factor_(std::make_unique<Factor>()) {
+TangentSolver::Factor::Factor() {
 #ifdef FIBERFEM_HAVE_UMFPACK
   // The tangent is symmetric in pattern (in value but for a follower load's stiffness):
   // UMFPACK's symmetric strategy orders A + A^T by nested dissection (METIS) instead of its
   // unsymmetric column ordering, which filled about twice as much on the Land beam.
-  factor_->lu.umfpackControl()(UMFPACK_STRATEGY) = UMFPACK_STRATEGY_SYMMETRIC;
-  factor_->lu.umfpackControl()(UMFPACK_ORDERING) = UMFPACK_ORDERING_METIS;
+  lu.umfpackControl()(UMFPACK_STRATEGY) = UMFPACK_STRATEGY_SYMMETRIC;
+  lu.umfpackControl()(UMFPACK_ORDERING) = UMFPACK_ORDERING_METIS;
   // No iterative refinement inside a solve: BiCGSTAB refines (against the current tangent,
   // which a lagged factor's refinement would not), and Newton's forcing sets the accuracy.
-  factor_->lu.umfpackControl()(UMFPACK_IRSTEP) = 0;
+  lu.umfpackControl()(UMFPACK_IRSTEP) = 0;
 #endif
 }
+
+TangentSolver::TangentSolver(bool keeps_state) : factor_(std::make_unique<Factor>()), keeps_state_(keeps_state) {}
 
 TangentSolver::~TangentSolver() = default;
 
@@ -65,11 +69,45 @@ bool TangentSolver::factorise(const SparseMatrix& K) {
   if (!factor_->analysed) {
     factor_->lu.analyzePattern(K);
     factor_->analysed = true;
+    if (keeps_state_) analysed_ = K;
   }
   factor_->lu.factorize(K);
   ++factorisations_;
   have_factor_ = factor_->lu.info() == Eigen::Success;
+  if (keeps_state_) factored_ = have_factor_ ? K : SparseMatrix();
   return have_factor_;
+}
+
+void TangentSolver::take_memory(TangentSolver& other) {
+  std::swap(factor_, other.factor_);
+  std::swap(have_factor_, other.have_factor_);
+  std::swap(analysed_, other.analysed_);
+  std::swap(factored_, other.factored_);
+  other.factor_ = std::make_unique<Factor>();
+  other.have_factor_ = false;
+  other.analysed_ = SparseMatrix();
+  other.factored_ = SparseMatrix();
+}
+
+// The symbolic analysis reads the values too (UMFPACK's pivot preferences), so it is made
+// again from the very matrix it was made from, then the factor from its own.
+void TangentSolver::restore(const State& state) {
+  auto factor = std::make_unique<Factor>();
+  bool have = false;
+  if (state.analysed.rows() > 0) {
+    factor->lu.analyzePattern(state.analysed);
+    factor->analysed = true;
+  }
+  if (state.factored.rows() > 0) {
+    if (!factor->analysed) throw std::invalid_argument("tangent solver state: a factor without its analysis");
+    factor->lu.factorize(state.factored);
+    if (factor->lu.info() != Eigen::Success) throw std::invalid_argument("tangent solver state: its matrix does not factorise");
+    have = true;
+  }
+  factor_ = std::move(factor);
+  have_factor_ = have;
+  analysed_ = state.analysed;
+  factored_ = state.factored;
 }
 
 bool TangentSolver::solve(const SparseMatrix& K, const Eigen::VectorXd& R, double forcing, bool fresh, Eigen::VectorXd& delta) {

@@ -18,7 +18,9 @@ class TangentSolver {
   /// Iterations of BiCGSTAB on a lagged factor before the tangent is factorised afresh.
   static constexpr int kMaxKrylovIterations = 12;
 
-  TangentSolver();
+  /// `keeps_state`: keep copies of the matrices analysed and factorised, for state()
+  /// (a time stepper's checkpoints); off, state() is empty.
+  explicit TangentSolver(bool keeps_state = false);
   ~TangentSolver();
   TangentSolver(const TangentSolver&) = delete;
   TangentSolver& operator=(const TangentSolver&) = delete;
@@ -28,6 +30,22 @@ class TangentSolver {
   /// singular (no factor) or the answer is not finite.
   bool solve(const SparseMatrix& K, const Eigen::VectorXd& R, double forcing, bool fresh, Eigen::VectorXd& delta);
 
+  /// The solver's memory: the matrix its symbolic analysis was made from and the one its
+  /// factor is of (0 x 0 when there is none). Restoring it gives the same factor, so the
+  /// solves after a restore equal those of the run it was taken from, bit for bit.
+  struct State {
+    SparseMatrix analysed;
+    SparseMatrix factored;
+  };
+  State state() const { return {analysed_, factored_}; }
+  /// Analyses and factorises the state's matrices again.
+  /// @throws std::invalid_argument when its factored matrix is singular.
+  void restore(const State& state);
+
+  /// Takes `other`'s memory (its analysis, factor and their matrices) without factorising
+  /// again: what restore(other.state()) gives, at no cost. `other` is left without a factor.
+  void take_memory(TangentSolver& other);
+
   int factorisations() const { return factorisations_; }
   int krylov_iterations() const { return krylov_iterations_; }
   double seconds() const { return seconds_; }
@@ -36,6 +54,8 @@ class TangentSolver {
   struct Factor;
   bool factorise(const SparseMatrix& K);
   std::unique_ptr<Factor> factor_;
+  bool keeps_state_ = false;
+  SparseMatrix analysed_, factored_;  // copies (when keeps_state_): what state() hands out
   bool have_factor_ = false;
   int factorisations_ = 0;
   int krylov_iterations_ = 0;

@@ -1,10 +1,12 @@
 // `fiberfem render SCENE.yaml`: the scene simulated here as `fiberfem run` does (a
-// RunDriver stepped frame by frame), or a static scene's rest state and equilibrium.
+// RunDriver stepped frame by frame, on either tier: the corner mesh of an order-2 scene is
+// drawn), or a static scene's rest state and equilibrium.
 
 #include "service/app/render_feed.hpp"
 
 #include "clients/render/surface.hpp"
 #include "io/scene.hpp"
+#include "io/scene_accurate.hpp"
 #include "service/batch_run.hpp"
 #include "service/run_driver.hpp"
 
@@ -26,7 +28,14 @@ void static_frames(Feed& f, std::shared_ptr<const io::Scene> sc, std::shared_ptr
     if (i >= 2) return false;
     act.assign(contracting ? static_cast<size_t>(sc->model.mesh.num_elements()) : 0, 0.0);
     if (i == 0) {
-      x = run->simulator().positions();
+      x = run->engine().positions();
+    } else if (sc->accurate()) {  // Newton on the element mesh; its corner nodes drawn
+      const io::AccurateProblem ap = io::accurate_problem(*sc);
+      core::Positions xe;
+      Eigen::VectorXd p;
+      const core::hyperelastic::NewtonReport r = core::hyperelastic::solve_static(*ap.problem, xe, p, ap.newton);
+      if (!r.converged) throw std::runtime_error("static solve did not converge: " + r.message);
+      x = xe.leftCols(ap.mesh->num_corner_nodes());
     } else {
       const core::StaticReport r = service::static_equilibrium(*sc, x);
       if (!r.converged) throw std::runtime_error("static solve did not converge: " + r.message);
@@ -50,9 +59,9 @@ void dynamic_frames(Feed& f, std::shared_ptr<service::RunDriver> run, long steps
       const core::StepReport& r = run->step();
       step_s->push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       if (r.status == core::StepStatus::failed)
-        throw std::runtime_error("step " + std::to_string(s) + " failed at t = " + std::to_string(run->simulator().time_s()) + " s: " + r.message);
+        throw std::runtime_error("step " + std::to_string(s) + " failed at t = " + std::to_string(run->engine().time_s()) + " s: " + r.message);
     }
-    const core::Simulator& sim = run->simulator();
+    const service::Engine& sim = run->engine();
     x = sim.positions();
     act = contracting ? run->activation() : std::vector<double>{};
     t = sim.time_s(), step = s;
@@ -96,7 +105,8 @@ Feed scene_feed(const RenderArgs& a) {
   f.frame_dt_s = dt;
   f.to_draw = a.last ? 1 : is_static ? 2 : !at.empty() ? static_cast<long>(at.size()) : steps / a.every + 1;
   auto run = std::make_shared<service::RunDriver>(*sc, service::Parameters::fixed);
-  f.dm_inv = &run->simulator().caches().Dm_inv;
+  // The simulator's rest-shape inverses (the accurate tier has none: the renderer makes its own).
+  if (const core::Simulator* sim = run->engine().real_time()) f.dm_inv = &sim->caches().Dm_inv;
   if (is_static) static_frames(f, sc, run);
   else dynamic_frames(f, run, steps);
   return f;

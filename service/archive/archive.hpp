@@ -6,7 +6,9 @@
 
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
+#include "service/engine.hpp"
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -19,7 +21,11 @@ namespace fiberfem::archive {
 
 /// Name and version of the file format (root attributes `format`, `format_version`).
 inline constexpr const char* kFormatName = "fiberfem-archive";
+/// The version of a real-time tier run's archive.
 inline constexpr int kFormatVersion = 1;
+/// The version of an accurate tier run's archive (version 1 plus the element mesh, frames
+/// on all its nodes, accurate-tier checkpoints): readers of version 1 refuse it by name.
+inline constexpr int kFormatVersionAccurate = 2;
 
 /// How a run is recorded. Every field has a default; validate() names a bad one.
 struct ArchiveOptions {
@@ -75,21 +81,21 @@ class ArchiveWriter {
  public:
   /// @param source where the scene came from (file path, "builtin:NAME", "resume:RUN.h5").
   /// @throws std::invalid_argument for bad options, h5::Error if the file cannot be written.
-  ArchiveWriter(ArchiveOptions options, const io::Scene& scene, const core::Simulator& sim, std::string source);
+  ArchiveWriter(ArchiveOptions options, const io::Scene& scene, const service::Engine& engine, std::string source);
   ~ArchiveWriter();
   ArchiveWriter(const ArchiveWriter&) = delete;
   ArchiveWriter& operator=(const ArchiveWriter&) = delete;
 
-  /// Records the simulator's current state as a frame when its step count is a multiple
+  /// Records the engine's current state as a frame when its step count is a multiple
   /// of every_steps (else does nothing); `r` is the report of the step just taken. Flushes
   /// on the frame or wall-time cadence; writes a checkpoint every checkpoint_every_s.
-  void record_frame(const core::Simulator& sim, const core::StepReport& r, const FrameExtras& x);
+  void record_frame(const service::Engine& engine, const core::StepReport& r, const FrameExtras& x);
   /// Records a command (applied or refused).
   void record_command(const CommandRecord& c);
-  /// Writes a resumable checkpoint of `sim` now; `parameter_state_json` is kept opaque
+  /// Writes a resumable checkpoint of `engine` now; `parameter_state_json` is kept opaque
   /// (the service stores the applied parameter commands; batch runs pass "{}"). The same
   /// step, state and parameters as the last checkpoint are not written twice.
-  void checkpoint(const core::Simulator& sim, const std::string& parameter_state_json);
+  void checkpoint(const service::Engine& engine, const std::string& parameter_state_json);
   /// The parameter state the periodic checkpoints of record_frame carry (default "{}";
   /// the service sets its running scene and forces after every accepted command).
   void set_parameter_state(std::string parameter_state_json);
@@ -107,7 +113,7 @@ class ArchiveWriter {
 
 /// What the header holds (written once).
 struct ArchiveHeader {
-  int format_version = 0;                      ///< kFormatVersion.
+  int format_version = 0;                      ///< kFormatVersion or kFormatVersionAccurate.
   std::string software_version;                ///< fiberfem version that wrote it.
   std::string git_commit;                      ///< Its git commit, or "unknown".
   std::string created_utc;                     ///< ISO 8601 UTC.
@@ -130,13 +136,25 @@ struct ArchiveHeader {
   bool has_velocities = false;                 ///< Frames carry velocities.
   bool has_displacement = false;               ///< Frames carry displacements.
   int every_steps = 1;                         ///< Every K-th step was recorded.
+  /// "real_time" or "accurate" (version 1 archives: real_time).
+  std::string tier = "real_time";
+  /// Element order, 1 or 2 (version 1 archives: 1).
+  int order = 1;
+  /// Order 2: every node of the 10-node mesh, corners first (the first columns are
+  /// rest_positions), 3 x M, m; empty at order 1.
+  core::Positions element_rest_positions;
+  /// Order 2: the 10-node elements in XDMF's and VTK's node order (corners, then the
+  /// edges 01 12 02 03 13 23); empty at order 1.
+  std::vector<std::array<int, 10>> element_tets;
 };
 
 /// One recorded frame.
 struct Frame {
   long step = 0;                               ///< Step count.
   double time_s = 0;                           ///< Simulation time, s.
-  core::Positions positions;                   ///< 3 x N, m (stored float32).
+  core::Positions positions;                   ///< 3 x N (the corner mesh), m (stored float32).
+  /// Order 2: every node of the 10-node mesh, 3 x M, m (stored float32); else empty.
+  core::Positions element_positions;
   core::Positions velocities;                  ///< 3 x N, m/s, or empty.
   core::Positions displacement;                ///< 3 x N, m (stored float32), or empty.
   std::vector<double> activation_pa;           ///< Per element (stored float32), empty when off.
@@ -187,7 +205,10 @@ class ArchiveReader {
   /// Index of the last checkpoint at or before `time_s` (with 1e-9 s slack; +inf: the last).
   /// @throws std::invalid_argument listing the checkpoint times when there is none.
   size_t checkpoint_at_or_before(double time_s) const;
-  /// Reads checkpoint `k`; its parameter-state JSON into `parameter_state` if given.
+  /// Reads checkpoint `k` of either tier; its parameter-state JSON into `parameter_state`
+  /// if given.
+  service::EngineCheckpoint read_engine_checkpoint(size_t k, std::string* parameter_state = nullptr) const;
+  /// Reads checkpoint `k` of a real-time run. @throws std::runtime_error for an accurate one.
   core::SimulatorCheckpoint read_checkpoint(size_t k, std::string* parameter_state = nullptr) const;
   /// The file as opened.
   const std::string& path() const { return path_; }

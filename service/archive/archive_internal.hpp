@@ -6,6 +6,7 @@
 #include "service/archive/archive.hpp"
 #include "service/archive/hdf5.hpp"
 
+#include <Eigen/SparseCore>
 #include <nlohmann/json.hpp>
 
 #include <ctime>
@@ -56,6 +57,21 @@ inline void add_matrices(Blob& b, const std::string& name, const std::vector<cor
   b.add(name, v.data(), v.size());
 }
 
+// A sparse matrix (compressed columns) as three sections: NAME.outer (cols + 1),
+// NAME.inner (nonzeros) and NAME.values; the indices are whole numbers held exactly in
+// doubles. A 0 x 0 matrix (none) has an empty outer.
+inline void add_sparse(Blob& b, const std::string& name, Eigen::SparseMatrix<double, Eigen::ColMajor, int> m) {
+  m.makeCompressed();
+  std::vector<double> outer, inner;
+  if (m.rows() > 0) {
+    outer.assign(m.outerIndexPtr(), m.outerIndexPtr() + m.cols() + 1);
+    inner.assign(m.innerIndexPtr(), m.innerIndexPtr() + m.nonZeros());
+  }
+  b.add(name + ".outer", outer.data(), outer.size());
+  b.add(name + ".inner", inner.data(), inner.size());
+  b.add(name + ".values", m.valuePtr(), m.rows() > 0 ? static_cast<size_t>(m.nonZeros()) : 0);
+}
+
 struct Section {
   const double* p = nullptr;
   size_t n = 0;
@@ -93,10 +109,11 @@ inline std::vector<std::string> names_attribute(hid_t obj, const std::string& na
 void write_atomically(const std::string& path, const std::string& text);
 /// The XDMF sidecar's path for an archive (RUN.h5 -> RUN.xdmf).
 std::string sidecar_path(const std::string& h5_path);
-/// The XDMF sidecar's text for F frames of N nodes and E elements.
+/// The XDMF sidecar's text for F frames of N nodes and E elements (of 10 nodes when order2).
 std::string xdmf_text(const std::string& h5_path, long F, const std::vector<double>& times, hsize_t N, hsize_t E, bool velocities,
-                      bool displacement);
-/// The checkpoint in a header (JSON) and its data. @throws json::exception when malformed.
-core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>& data, std::string* parameter_state);
+                      bool displacement, bool order2);
+/// The checkpoint in a header (JSON) and its data, of either tier. @throws json::exception
+/// or std::runtime_error when malformed.
+service::EngineCheckpoint checkpoint_of(const json& h, const std::vector<double>& data, std::string* parameter_state);
 
 }  // namespace fiberfem::archive::detail

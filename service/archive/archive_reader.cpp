@@ -17,6 +17,37 @@ using namespace detail;
 
 // ---------------------------------------------------------------------------- reader
 
+namespace {
+
+// An accurate-tier archive's element order and, at order 2, its 10-node mesh (absent in
+// version 1 archives: order 1), checked against the corner mesh of N nodes.
+void read_element_mesh(hid_t root, ArchiveHeader& h, hsize_t N, const std::string& where) {
+  h5::Handle g = h5::open_group(root, "mesh");
+  if (!h5::has_attribute(g.id(), "order")) return;
+  h.order = static_cast<int>(h5::read_attribute<std::int64_t>(g.id(), "order"));
+  const auto bad = [&](const std::string& what) { throw std::runtime_error(where + ": " + what); };
+  if (h.order != 1 && h.order != 2) bad("mesh order " + std::to_string(h.order) + " is not 1 or 2");
+  if (h.order != 2) return;
+  const std::vector<double> rest = h5::open_dataset(root, "mesh/order2_rest_positions", where).read_all<double>();
+  const std::vector<std::int32_t> tets = h5::open_dataset(root, "mesh/order2_tets", where).read_all<std::int32_t>();
+  const hsize_t M = rest.size() / 3;
+  if (rest.size() % 3 != 0 || M < N) bad("mesh/order2_rest_positions does not hold 3 numbers for each of at least " + std::to_string(N) + " nodes");
+  if (tets.size() != 10 * h.tets.size()) bad("mesh/order2_tets does not hold 10 nodes for each of the " + std::to_string(h.tets.size()) + " elements");
+  h.element_rest_positions = Eigen::Map<const core::Positions>(rest.data(), 3, static_cast<Eigen::Index>(M));
+  if (!h.element_rest_positions.allFinite() || h.element_rest_positions.leftCols(static_cast<Eigen::Index>(N)) != h.rest_positions)
+    bad("mesh/order2_rest_positions does not start with the mesh's rest positions");
+  for (size_t i = 0; i < tets.size(); i += 10) {
+    std::array<int, 10> t;
+    for (size_t a = 0; a < 10; ++a) {
+      if (tets[i + a] < 0 || static_cast<hsize_t>(tets[i + a]) >= M) bad("mesh/order2_tets[" + std::to_string(i + a) + "] is not a node index");
+      t[a] = tets[i + a];
+    }
+    h.element_tets.push_back(t);
+  }
+}
+
+}  // namespace
+
 struct ArchiveReader::Impl {
   h5::File file;
   bool follow = false;
@@ -49,9 +80,9 @@ ArchiveReader::ArchiveReader(const std::string& path, bool follow) : impl_(std::
     throw std::runtime_error(where + " is not a fiberfem archive (no root attribute format = \"" + std::string(kFormatName) + "\")");
   ArchiveHeader& h = header_;
   h.format_version = static_cast<int>(h5::read_attribute<std::int64_t>(root, "format_version"));
-  if (h.format_version != kFormatVersion)
+  if (h.format_version != kFormatVersion && h.format_version != kFormatVersionAccurate)
     throw std::runtime_error(where + " has archive format version " + std::to_string(h.format_version) + "; this fiberfem reads version " +
-                             std::to_string(kFormatVersion));
+                             std::to_string(kFormatVersion) + " and " + std::to_string(kFormatVersionAccurate));
   h.software_version = h5::read_string_attribute(root, "software_version");
   h.git_commit = h5::read_string_attribute(root, "git_commit");
   h.created_utc = h5::read_string_attribute(root, "created_utc");
@@ -64,6 +95,7 @@ ArchiveReader::ArchiveReader(const std::string& path, bool follow) : impl_(std::
     h.dt_s = h5::read_attribute<double>(g.id(), "dt_s");
     h.scene_base_dir = h5::read_string_attribute(g.id(), "base_dir");
     h.scene_yaml = h5::read_text(open("scene/yaml"));
+    if (h5::has_attribute(g.id(), "tier")) h.tier = h5::read_string_attribute(g.id(), "tier");
   }
   const std::vector<double> rest = open("mesh/rest_positions").read_all<double>();
   h.rest_positions = Eigen::Map<const core::Positions>(rest.data(), 3, static_cast<Eigen::Index>(rest.size() / 3));
@@ -112,6 +144,8 @@ ArchiveReader::ArchiveReader(const std::string& path, bool follow) : impl_(std::
   d.cp_data = open("checkpoints/data");
   const hsize_t N = static_cast<hsize_t>(h.rest_positions.cols());
   const auto bad = [&](const std::string& what) { throw std::runtime_error(where + ": " + what); };
+  read_element_mesh(root, h, N, where);
+  const hsize_t M = h.order == 2 ? static_cast<hsize_t>(h.element_rest_positions.cols()) : N;  // nodes of a frame
   if (rest.size() % 3 != 0 || N == 0) bad("mesh/rest_positions holds " + std::to_string(rest.size()) + " numbers, not 3 per node");
   if (!h.rest_positions.allFinite()) bad("mesh/rest_positions has a non-finite coordinate");
   if (tets.empty() || tets.size() % 4 != 0) bad("mesh/tets holds " + std::to_string(tets.size()) + " indices, not 4 per element");
@@ -129,11 +163,11 @@ ArchiveReader::ArchiveReader(const std::string& path, bool follow) : impl_(std::
     bad("materials/stiffness and materials/density disagree on the number of regions");
   for (int r : h.regions)
     if (r < 0 || static_cast<size_t>(r) >= h.density_kg_m3.size()) bad("mesh/regions names region " + std::to_string(r) + ", which has no material");
-  if (d.positions.dims().size() != 3 || d.positions.dims()[1] != N || d.positions.dims()[2] != 3)
-    throw std::runtime_error(where + ": frames/positions does not match the mesh's " + std::to_string(N) + " nodes");
+  if (d.positions.dims().size() != 3 || d.positions.dims()[1] != M || d.positions.dims()[2] != 3)
+    throw std::runtime_error(where + ": frames/positions does not match the mesh's " + std::to_string(M) + " nodes");
   for (const auto* ds : {&d.velocities, &d.displacement})
-    if (*ds && (ds->dims().size() != 3 || ds->dims()[1] != N || ds->dims()[2] != 3))
-      bad("frames/velocities or frames/displacement does not match the mesh's " + std::to_string(N) + " nodes");
+    if (*ds && (ds->dims().size() != 3 || ds->dims()[1] != M || ds->dims()[2] != 3))
+      bad("frames/velocities or frames/displacement does not match the mesh's " + std::to_string(M) + " nodes");
   if (d.energies.dims().size() != 2 || d.energies.dims()[1] != 2) bad("frames/energies is not 2 numbers per frame");
   refresh();
 }
@@ -160,12 +194,15 @@ Frame ArchiveReader::frame(long i) const {
     throw std::out_of_range("archive: frame " + std::to_string(i) + " of " + std::to_string(frames_) + " in '" + path_ + "'");
   const Impl& d = *impl_;
   const hsize_t k = static_cast<hsize_t>(i);
-  const Eigen::Index N = header_.rest_positions.cols();
+  const Eigen::Index N = header_.rest_positions.cols();  // the corner mesh: the first N of a frame's nodes
   Frame f;
   f.step = d.step.read_rows<std::int64_t>(k, 1)[0];
   f.time_s = d.time.read_rows<double>(k, 1)[0];
   const std::vector<float> x = d.positions.read_rows<float>(k, 1);
   f.positions = Eigen::Map<const Eigen::Matrix<float, 3, Eigen::Dynamic>>(x.data(), 3, N).cast<double>();
+  if (header_.order == 2)
+    f.element_positions = Eigen::Map<const Eigen::Matrix<float, 3, Eigen::Dynamic>>(x.data(), 3, static_cast<Eigen::Index>(x.size() / 3))
+                              .cast<double>();
   if (d.displacement) {
     const std::vector<float> u = d.displacement.read_rows<float>(k, 1);
     f.displacement = Eigen::Map<const Eigen::Matrix<float, 3, Eigen::Dynamic>>(u.data(), 3, N).cast<double>();
@@ -249,6 +286,14 @@ size_t ArchiveReader::checkpoint_at_or_before(double time_s) const {
 }
 
 core::SimulatorCheckpoint ArchiveReader::read_checkpoint(size_t k, std::string* parameter_state) const {
+  service::EngineCheckpoint c = read_engine_checkpoint(k, parameter_state);
+  auto* rt = std::get_if<core::SimulatorCheckpoint>(&c);
+  if (rt == nullptr)
+    throw std::runtime_error("archive: checkpoint " + std::to_string(k) + " in '" + path_ + "' is of an accurate-tier run");
+  return std::move(*rt);
+}
+
+service::EngineCheckpoint ArchiveReader::read_engine_checkpoint(size_t k, std::string* parameter_state) const {
   Impl& d = *impl_;
   const std::vector<CheckpointInfo> cps = checkpoints();
   if (k >= cps.size())

@@ -45,26 +45,34 @@ void export_meshio(const std::string& h5_path, const std::string& out_xdmf) {
   if (std::filesystem::exists(data_path) && std::filesystem::equivalent(data_path, h5_path))
     throw std::invalid_argument("archive: export-meshio would overwrite the archive '" + h5_path + "'");
   const std::string file = std::filesystem::path(data_path).filename().string();
-  const hsize_t N = static_cast<hsize_t>(h.rest_positions.cols()), E = h.tets.size();
+  // An order-2 run exports its 10-node mesh (meshio's tetra10), every node of it.
+  const bool order2 = h.order == 2;
+  const core::Positions& rest = order2 ? h.element_rest_positions : h.rest_positions;
+  const hsize_t N = static_cast<hsize_t>(rest.cols()), E = h.tets.size(), K = order2 ? 10 : 4;
   h5::File out = h5::File::create(data_path);
-  h5::create_fixed<double>(out.id(), "points", {N, 3}, h.rest_positions.data());
+  h5::create_fixed<double>(out.id(), "points", {N, 3}, rest.data());
   std::vector<std::int64_t> cells;
-  for (const core::Tet& t : h.tets) cells.insert(cells.end(), t.begin(), t.end());
-  h5::create_fixed<std::int64_t>(out.id(), "cells", {E, 4}, cells.data());
+  if (order2)
+    for (const auto& t : h.element_tets) cells.insert(cells.end(), t.begin(), t.end());
+  else
+    for (const core::Tet& t : h.tets) cells.insert(cells.end(), t.begin(), t.end());
+  h5::create_fixed<std::int64_t>(out.id(), "cells", {E, K}, cells.data());
   std::ostringstream x;
   x.precision(17);
   x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\" xmlns:xi=\"http://www.w3.org/2001/XInclude\">\n<Domain>\n"
     << "<Grid Name=\"mesh\" GridType=\"Uniform\">\n<Geometry GeometryType=\"XYZ\">\n <DataItem DataType=\"Float\" Dimensions=\"" << N
     << " 3\" Format=\"HDF\" Precision=\"8\">" << file << ":/points</DataItem>\n</Geometry>\n"
-    << "<Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"" << E << "\">\n <DataItem DataType=\"Int\" Dimensions=\"" << E
-    << " 4\" Format=\"HDF\" Precision=\"8\">" << file << ":/cells</DataItem>\n</Topology>\n</Grid>\n"
+    << "<Topology TopologyType=\"" << (order2 ? "Tetrahedron_10" : "Tetrahedron") << "\" NumberOfElements=\"" << E
+    << "\">\n <DataItem DataType=\"Int\" Dimensions=\"" << E << " " << K << "\" Format=\"HDF\" Precision=\"8\">" << file
+    << ":/cells</DataItem>\n</Topology>\n</Grid>\n"
     << "<Grid Name=\"TimeSeries\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   const long F = r.frames();
   for (long i = 0; i < F; ++i) {
     const Frame fr = r.frame(i);
-    const core::Positions u = fr.positions - h.rest_positions;
+    const core::Positions& at = order2 ? fr.element_positions : fr.positions;
+    const core::Positions u = at - rest;
     const std::string s = std::to_string(i);
-    h5::create_fixed<double>(out.id(), "positions_" + s, {N, 3}, fr.positions.data());
+    h5::create_fixed<double>(out.id(), "positions_" + s, {N, 3}, at.data());
     h5::create_fixed<double>(out.id(), "displacement_" + s, {N, 3}, u.data());
     h5::create_fixed<double>(out.id(), "activation_" + s, {E}, fr.activation_pa.data());
     x << "<Grid Name=\"frame " << s << "\">\n<xi:include xpointer=\"xpointer(//Grid[@Name=&quot;mesh&quot;]/*[self::Topology or "

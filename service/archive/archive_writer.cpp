@@ -3,6 +3,9 @@
 
 #include "service/archive/archive_internal.hpp"
 
+#include "io/scene_accurate.hpp"
+#include "service/engine_accurate.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -39,6 +42,7 @@ struct WriterFile {
   h5::Dataset cmd_step, cmd_time, cmd_accepted, cmd_end, cmd_bytes;
   h5::Dataset cp_step, cp_time, cp_header_end, cp_header, cp_data_end, cp_data;
   int nn = 0, ne = 0;
+  core::Positions frame_rest;          // rest positions of the nodes a frame holds (3 x M)
   std::vector<io::Probe> probe_list;
   long frames = 0, since_flush = 0;
   std::chrono::steady_clock::time_point last_flush = std::chrono::steady_clock::now();
@@ -49,7 +53,7 @@ struct WriterFile {
   double sidecar_cost_s = 0;           // how long that took
   long sidecar_frames = 0;             // frames it lists
   long last_checkpoint_step = -1;         // the last checkpoint's step, state and parameters
-  Eigen::VectorXd last_checkpoint_x, last_checkpoint_v;
+  Eigen::VectorXd last_checkpoint_x, last_checkpoint_v;  // of either tier
   std::string last_checkpoint_params;
   std::vector<float> fbuf;
   bool closed = false;
@@ -57,21 +61,87 @@ struct WriterFile {
 };
 
 }  // namespace detail
-ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, const core::Simulator& sim, std::string source)
+namespace {
+
+// The time stepper's settings as the header's scene/solver_settings attribute.
+json solver_settings(const service::Engine& engine) {
+  if (const service::AccurateEngine* a = engine.accurate()) {
+    const core::hyperelastic::DynamicSettings& s = a->settings();
+    return {{"tier", "accurate"},
+            {"dt_s", s.dt_s},
+            {"order", a->element_mesh().order()},
+            {"mass_damping_1_s", s.mass_damping_1_s},
+            {"newton_tolerance", s.newton.tolerance},
+            {"newton_max_iterations", s.newton.max_iterations},
+            {"newton_line_search", s.newton.line_search},
+            {"threads", s.newton.threads}};
+  }
+  const core::SimulatorSettings& s = engine.real_time()->settings();
+  return {{"dt_s", s.dt_s},
+          {"method", core::to_string(s.solver.method)},
+          {"preconditioner", core::to_string(s.solver.preconditioner)},
+          {"tolerance", s.solver.tolerance},
+          {"max_iterations", s.solver.max_iterations},
+          {"refresh_iterations", s.solver.refresh_iterations},
+          {"refresh_budget", s.solver.refresh_budget},
+          {"recycled_solutions", s.solver.recycled_solutions},
+          {"warm_start", s.solver.warm_start},
+          {"rotation", s.rotation == core::RotationMethod::polar ? "polar" : "svd"},
+          {"corotation", s.corotation},
+          {"first_factorisation", core::to_string(s.solver.first_factorisation)},
+          {"max_substep_halvings", s.max_substep_halvings},
+          {"max_energy_gain", std::isfinite(s.max_energy_gain) ? json(s.max_energy_gain) : json("inf")},
+          {"threads", s.threads}};
+}
+
+// The nodes a frame holds: the element mesh's (corners first) on the accurate tier, the
+// mesh's on the real-time tier.
+const double* frame_positions(const service::Engine& engine) {
+  const service::AccurateEngine* a = engine.accurate();
+  return a ? a->element_positions().data() : engine.positions().data();
+}
+const double* frame_velocities(const service::Engine& engine) {
+  const service::AccurateEngine* a = engine.accurate();
+  return a ? a->element_velocities().data() : engine.velocities().data();
+}
+
+// An order-2 archive's element mesh (docs/archive.md): every node, and the elements in
+// XDMF's node order (gmsh's, with its last two edges swapped).
+void write_element_mesh(hid_t mesh_group, const core::hyperelastic::ElementMesh& em) {
+  h5::write_attribute<std::int64_t>(mesh_group, "order", em.order());
+  if (em.order() != 2) return;
+  const hsize_t M = static_cast<hsize_t>(em.num_nodes()), E = static_cast<hsize_t>(em.num_elements());
+  h5::Dataset rest = h5::create_fixed<double>(mesh_group, "order2_rest_positions", {M, 3}, em.rest_positions().data());
+  h5::write_attribute(rest.id(), "unit", std::string("m"));
+  std::vector<std::int32_t> tets;
+  for (std::array<int, 10> t : em.elements()) {
+    std::swap(t[8], t[9]);
+    tets.insert(tets.end(), t.begin(), t.end());
+  }
+  h5::Dataset t = h5::create_fixed<std::int32_t>(mesh_group, "order2_tets", {E, 10}, tets.data());
+  h5::write_attribute(t.id(), "node_order", std::string("XDMF Tetrahedron_10 / VTK: corners 0 1 2 3, edges 01 12 02 03 13 23"));
+}
+
+}  // namespace
+
+ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, const service::Engine& engine, std::string source)
     : f_(std::make_unique<detail::WriterFile>()) {
   options.validate();
   detail::WriterFile& w = *f_;
   w.o = std::move(options);
-  const core::Model& m = sim.model();
+  const core::Model& m = engine.model();
   const core::TetMesh& mesh = m.mesh;
+  const service::AccurateEngine* accurate = engine.accurate();
   w.nn = mesh.num_nodes();
   w.ne = mesh.num_elements();
+  w.frame_rest = accurate ? accurate->element_mesh().rest_positions() : mesh.rest_positions();
   w.probe_list = scene.probes;
   const hsize_t N = static_cast<hsize_t>(w.nn), E = static_cast<hsize_t>(w.ne);
+  const hsize_t M = static_cast<hsize_t>(w.frame_rest.cols());  // nodes of a frame
   w.file = h5::File::create(w.o.path);
   const hid_t root = w.file.id();
   h5::write_attribute(root, "format", std::string(kFormatName));
-  h5::write_attribute<std::int64_t>(root, "format_version", kFormatVersion);
+  h5::write_attribute<std::int64_t>(root, "format_version", accurate ? kFormatVersionAccurate : kFormatVersion);
   h5::write_attribute(root, "software_version", software_version());
   h5::write_attribute(root, "git_commit", git_commit());
   h5::write_attribute(root, "created_utc", utc_now());
@@ -84,27 +154,12 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
     h5::Handle g = h5::create_group(root, "scene");
     h5::write_attribute(g.id(), "name", scene.name);
     h5::write_attribute(g.id(), "sha256", scene.hash_sha256);
-    h5::write_attribute(g.id(), "dt_s", sim.settings().dt_s);
+    h5::write_attribute(g.id(), "dt_s", engine.dt_s());
+    h5::write_attribute(g.id(), "tier", std::string(accurate ? "accurate" : "real_time"));
     h5::write_attribute(g.id(), "until_s", scene.until_s);
     h5::write_attribute(g.id(), "base_dir",
                         std::filesystem::absolute(scene.base_dir.empty() ? std::string(".") : scene.base_dir).lexically_normal().string());
-    const core::SimulatorSettings& s = sim.settings();
-    const json settings = {{"dt_s", s.dt_s},
-                           {"method", core::to_string(s.solver.method)},
-                           {"preconditioner", core::to_string(s.solver.preconditioner)},
-                           {"tolerance", s.solver.tolerance},
-                           {"max_iterations", s.solver.max_iterations},
-                           {"refresh_iterations", s.solver.refresh_iterations},
-                           {"refresh_budget", s.solver.refresh_budget},
-                           {"recycled_solutions", s.solver.recycled_solutions},
-                           {"warm_start", s.solver.warm_start},
-                           {"rotation", s.rotation == core::RotationMethod::polar ? "polar" : "svd"},
-                           {"corotation", s.corotation},
-                           {"first_factorisation", core::to_string(s.solver.first_factorisation)},
-                           {"max_substep_halvings", s.max_substep_halvings},
-                           {"max_energy_gain", std::isfinite(s.max_energy_gain) ? json(s.max_energy_gain) : json("inf")},
-                           {"threads", s.threads}};
-    h5::write_attribute(g.id(), "solver_settings", settings.dump());
+    h5::write_attribute(g.id(), "solver_settings", solver_settings(engine).dump());
     h5::create_text(g.id(), "yaml", scene.yaml_text);
     std::vector<std::string> probe_names;
     std::vector<std::int32_t> probe_elements;
@@ -147,6 +202,7 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
       fibers.insert(fibers.end(), f.data(), f.data() + 3);
     }
     h5::create_fixed<double>(g.id(), "fibers", {E, 3}, fibers.data());
+    if (accurate) write_element_mesh(g.id(), accurate->element_mesh());
   }
   {  // the material table
     h5::Handle g = h5::create_group(root, "materials");
@@ -170,14 +226,14 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
     h5::write_attribute<std::int64_t>(gid, "every_steps", w.o.every_steps);
     w.time = h5::create_extendible<double>(gid, "time", {}, kScalarChunk, 0);
     h5::write_attribute(w.time.id(), "unit", std::string("s"));
-    w.positions = h5::create_extendible<float>(gid, "positions", {N, 3}, 1, w.o.compression);
+    w.positions = h5::create_extendible<float>(gid, "positions", {M, 3}, 1, w.o.compression);
     h5::write_attribute(w.positions.id(), "unit", std::string("m"));
     if (w.o.displacement) {
-      w.displacement = h5::create_extendible<float>(gid, "displacement", {N, 3}, 1, w.o.compression);
+      w.displacement = h5::create_extendible<float>(gid, "displacement", {M, 3}, 1, w.o.compression);
       h5::write_attribute(w.displacement.id(), "unit", std::string("m"));
     }
     if (w.o.velocities) {
-      w.velocities = h5::create_extendible<float>(gid, "velocities", {N, 3}, 1, w.o.compression);
+      w.velocities = h5::create_extendible<float>(gid, "velocities", {M, 3}, 1, w.o.compression);
       h5::write_attribute(w.velocities.id(), "unit", std::string("m/s"));
     }
     // Without contraction the activation rows are left unwritten (fill value 0, no bytes).
@@ -224,8 +280,8 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
     w.cp_data_end = h5::create_extendible<std::int64_t>(g.id(), "data_end", {}, 16, 0);
   }
   w.file.start_swmr_write();
-  checkpoint(sim, "{}");
-  w.next_checkpoint_s = sim.time_s() + w.o.checkpoint_every_s;
+  checkpoint(engine, "{}");
+  w.next_checkpoint_s = engine.time_s() + w.o.checkpoint_every_s;
   flush();
   const std::filesystem::path p(w.o.path);
   w.xdmf_path = (p.parent_path() / p.stem()).string() + ".xdmf";
@@ -240,7 +296,7 @@ ArchiveWriter::~ArchiveWriter() {
 
 long ArchiveWriter::frames() const { return f_->frames; }
 
-void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepReport& r, const FrameExtras& x) {
+void ArchiveWriter::record_frame(const service::Engine& sim, const core::StepReport& r, const FrameExtras& x) {
   detail::WriterFile& w = *f_;
   if (w.closed) throw std::logic_error("archive: record_frame after close");
   if (sim.step_count() % w.o.every_steps != 0) return;
@@ -249,17 +305,17 @@ void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepRep
     for (size_t i = 0; i < n; ++i) w.fbuf[i] = static_cast<float>(p[i]);
     return w.fbuf.data();
   };
-  const size_t n3 = 3 * static_cast<size_t>(w.nn);
+  const size_t n3 = static_cast<size_t>(w.frame_rest.size());
   w.time.append(&r.time_s, 1);
-  w.positions.append(as_float(sim.positions().data(), n3), 1);
+  w.positions.append(as_float(frame_positions(sim), n3), 1);
   if (w.displacement) {
-    const double* x = sim.positions().data();
-    const double* x0 = sim.model().mesh.rest_positions().data();
+    const double* x = frame_positions(sim);
+    const double* x0 = w.frame_rest.data();
     w.fbuf.resize(n3);
     for (size_t i = 0; i < n3; ++i) w.fbuf[i] = static_cast<float>(x[i] - x0[i]);
     w.displacement.append(w.fbuf.data(), 1);
   }
-  if (w.velocities) w.velocities.append(as_float(sim.velocities().data(), n3), 1);
+  if (w.velocities) w.velocities.append(as_float(frame_velocities(sim), n3), 1);
   const std::vector<double>& a = sim.active_tension();
   if (a.empty()) {
     w.activation.extend(1);  // reads as zeros, stores nothing
@@ -274,8 +330,10 @@ void ArchiveWriter::record_frame(const core::Simulator& sim, const core::StepRep
   w.cavities.append(vols.data(), 1);
   std::vector<double> probe;
   const core::Positions x_now = sim.positions();
+  const service::AccurateEngine* accurate = sim.accurate();
   for (const io::Probe& p : w.probe_list) {
-    const core::Vec3 u = p.displacement(sim.model().mesh, x_now);
+    const core::Vec3 u = accurate ? io::accurate_probe_displacement(accurate->element_mesh(), p, accurate->element_positions())
+                                  : p.displacement(sim.model().mesh, x_now);
     probe.insert(probe.end(), u.data(), u.data() + 3);
   }
   w.probes.append(probe.data(), 1);
@@ -325,16 +383,10 @@ void ArchiveWriter::record_command(const CommandRecord& c) {
 
 void ArchiveWriter::set_parameter_state(std::string parameter_state_json) { f_->parameter_state = std::move(parameter_state_json); }
 
-void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& parameter_state_json) {
-  detail::WriterFile& w = *f_;
-  if (w.closed) throw std::logic_error("archive: checkpoint after close");
-  const core::SimulatorCheckpoint c = sim.checkpoint();
-  // The same state again (a periodic checkpoint on the run's last step, then the final
-  // one): keep one. A state revisited after a restore differs in x or v or parameters.
-  if (c.step_count == w.last_checkpoint_step && c.x == w.last_checkpoint_x && c.v == w.last_checkpoint_v &&
-      parameter_state_json == w.last_checkpoint_params)
-    return;
-  Blob b;
+namespace {
+
+// The real-time tier's checkpoint: its header fields and the data sections into `b`.
+json real_time_checkpoint(const core::SimulatorCheckpoint& c, Blob& b) {
   b.add("x", c.x.data(), static_cast<size_t>(c.x.size()));
   b.add("v", c.v.data(), static_cast<size_t>(c.v.size()));
   b.add("vfree", c.vfree.data(), static_cast<size_t>(c.vfree.size()));
@@ -358,40 +410,78 @@ void ArchiveWriter::checkpoint(const core::Simulator& sim, const std::string& pa
                        {"excess", f.excess}, {"key", f.key}, {"last_used", f.last_used},
                        {"beside", f.beside}, {"beside_left", f.beside_left}});
   }
-  const json header = {
-      {"time_s", c.time_s},
-      {"step_count", c.step_count},
-      {"dt_s", c.dt_s},
-      {"num_nodes", c.num_nodes},
-      {"num_elements", c.num_elements},
-      {"last_h_s", c.last_h_s},
-      {"rotations_current", c.rotations_current},
-      {"inverted_current", c.inverted_current},
-      {"energy_floor_j", c.energy_floor_j},
-      {"contraction_origin_s", c.contraction_origin_s},
-      {"solver",
-       {{"name", c.solver.solver_name},
-        {"history_rows", c.solver.history_rows},
-        {"history_cols", c.solver.history_cols},
-        {"history_count", c.solver.history_count},
-        {"history_next", c.solver.history_next},
-        {"key", c.solver.key},
-        {"clock", c.solver.clock},
-        {"factors", factors}}},
-      {"parameter_state", parameter_state_json},
-      {"layout", b.layout}};
+  return {{"time_s", c.time_s},
+          {"step_count", c.step_count},
+          {"dt_s", c.dt_s},
+          {"num_nodes", c.num_nodes},
+          {"num_elements", c.num_elements},
+          {"last_h_s", c.last_h_s},
+          {"rotations_current", c.rotations_current},
+          {"inverted_current", c.inverted_current},
+          {"energy_floor_j", c.energy_floor_j},
+          {"contraction_origin_s", c.contraction_origin_s},
+          {"solver",
+           {{"name", c.solver.solver_name},
+            {"history_rows", c.solver.history_rows},
+            {"history_cols", c.solver.history_cols},
+            {"history_count", c.solver.history_count},
+            {"history_next", c.solver.history_next},
+            {"key", c.solver.key},
+            {"clock", c.solver.clock},
+            {"factors", factors}}}};
+}
+
+// The accurate tier's checkpoint: positions, velocities and pressures on every node of the
+// element mesh, and the matrices of the lagged factor (docs/archive.md).
+json accurate_checkpoint(const core::hyperelastic::DynamicState& c, double dt_s, Blob& b) {
+  b.add("x", c.x.data(), static_cast<size_t>(c.x.size()));
+  b.add("v", c.v.data(), static_cast<size_t>(c.v.size()));
+  b.add("p", c.p.data(), static_cast<size_t>(c.p.size()));
+  add_sparse(b, "linear.analysed", c.linear.analysed);
+  add_sparse(b, "linear.factored", c.linear.factored);
+  return {{"tier", "accurate"},
+          {"time_s", c.time_s},
+          {"step_count", c.steps},
+          {"dt_s", dt_s},
+          {"num_nodes", c.x.cols()},
+          {"num_pressures", c.p.size()}};
+}
+
+}  // namespace
+
+void ArchiveWriter::checkpoint(const service::Engine& engine, const std::string& parameter_state_json) {
+  detail::WriterFile& w = *f_;
+  if (w.closed) throw std::logic_error("archive: checkpoint after close");
+  const service::EngineCheckpoint state = engine.checkpoint();
+  const auto* rt = std::get_if<core::SimulatorCheckpoint>(&state);
+  const auto* acc = std::get_if<core::hyperelastic::DynamicState>(&state);
+  const long step_count = rt ? rt->step_count : acc->steps;
+  const double time_s = rt ? rt->time_s : acc->time_s;
+  const Eigen::Map<const Eigen::VectorXd> x = rt ? Eigen::Map<const Eigen::VectorXd>(rt->x.data(), rt->x.size())
+                                                 : Eigen::Map<const Eigen::VectorXd>(acc->x.data(), acc->x.size());
+  const Eigen::Map<const Eigen::VectorXd> v = rt ? Eigen::Map<const Eigen::VectorXd>(rt->v.data(), rt->v.size())
+                                                 : Eigen::Map<const Eigen::VectorXd>(acc->v.data(), acc->v.size());
+  // The same state again (a periodic checkpoint on the run's last step, then the final
+  // one): keep one. A state revisited after a restore differs in x or v or parameters.
+  if (step_count == w.last_checkpoint_step && x == w.last_checkpoint_x && v == w.last_checkpoint_v &&
+      parameter_state_json == w.last_checkpoint_params)
+    return;
+  Blob b;
+  json header = rt ? real_time_checkpoint(*rt, b) : accurate_checkpoint(*acc, engine.dt_s(), b);
+  header["parameter_state"] = parameter_state_json;
+  header["layout"] = b.layout;
   const std::string text = header.dump();
   const std::int64_t data_end = static_cast<std::int64_t>(w.cp_data.append(b.data.data(), b.data.size()));
   const std::int64_t header_end =
       static_cast<std::int64_t>(w.cp_header.append(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
   w.cp_data_end.append(&data_end, 1);
   w.cp_header_end.append(&header_end, 1);
-  w.cp_time.append(&c.time_s, 1);
-  const std::int64_t step = c.step_count;
+  w.cp_time.append(&time_s, 1);
+  const std::int64_t step = step_count;
   w.cp_step.append(&step, 1);  // last: the checkpoint is complete
-  w.last_checkpoint_step = c.step_count;
-  w.last_checkpoint_x = c.x;
-  w.last_checkpoint_v = c.v;
+  w.last_checkpoint_step = step_count;
+  w.last_checkpoint_x = x;
+  w.last_checkpoint_v = v;
   w.last_checkpoint_params = parameter_state_json;
 }
 
@@ -407,8 +497,9 @@ void ArchiveWriter::flush() {
   if (w.frames > w.sidecar_frames && (w.sidecar_frames == 0 || since_sidecar >= std::max(5.0, 10 * w.sidecar_cost_s))) {
     try {
       const auto t0 = std::chrono::steady_clock::now();
-      write_atomically(sidecar_path(w.o.path), detail::xdmf_text(w.o.path, w.frames, w.times, static_cast<hsize_t>(w.nn),
-                                                                 static_cast<hsize_t>(w.ne), w.o.velocities, w.o.displacement));
+      write_atomically(sidecar_path(w.o.path), detail::xdmf_text(w.o.path, w.frames, w.times, static_cast<hsize_t>(w.frame_rest.cols()),
+                                                                 static_cast<hsize_t>(w.ne), w.o.velocities, w.o.displacement,
+                                                                 w.frame_rest.cols() != w.nn));
       w.last_sidecar = std::chrono::steady_clock::now();
       w.sidecar_cost_s = std::chrono::duration<double>(w.last_sidecar - t0).count();
       w.sidecar_frames = w.frames;

@@ -15,7 +15,50 @@ namespace fiberfem::archive {
 using namespace detail;
 
 namespace detail {
-core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>& data, std::string* parameter_state) {
+namespace {
+
+// A sparse matrix from its three sections (add_sparse), its indices checked.
+core::hyperelastic::SparseMatrix sparse_of(const json& h, const std::vector<double>& data, const std::string& name) {
+  const Section outer = section(h, data, name + ".outer"), inner = section(h, data, name + ".inner"),
+                values = section(h, data, name + ".values");
+  core::hyperelastic::SparseMatrix m;
+  if (outer.n == 0) return m;
+  const auto bad = [&] { throw std::runtime_error("archive: checkpoint matrix '" + name + "' has bad indices"); };
+  const Eigen::Index n = static_cast<Eigen::Index>(outer.n) - 1;
+  if (inner.n != values.n || outer.p[0] != 0 || outer.p[outer.n - 1] != static_cast<double>(inner.n)) bad();
+  std::vector<Eigen::Triplet<double, int>> t;
+  t.reserve(values.n);
+  for (Eigen::Index c = 0; c < n; ++c) {
+    const double b = outer.p[c], e = outer.p[c + 1];
+    if (!(b <= e) || e > static_cast<double>(inner.n)) bad();
+    for (size_t k = static_cast<size_t>(b); k < static_cast<size_t>(e); ++k) {
+      if (!(inner.p[k] >= 0 && inner.p[k] < static_cast<double>(n))) bad();
+      t.emplace_back(static_cast<int>(inner.p[k]), static_cast<int>(c), values.p[k]);
+    }
+  }
+  m.resize(n, n);
+  m.setFromTriplets(t.begin(), t.end());
+  m.makeCompressed();
+  return m;
+}
+
+core::hyperelastic::DynamicState accurate_checkpoint_of(const json& h, const std::vector<double>& data) {
+  core::hyperelastic::DynamicState c;
+  c.time_s = h.at("time_s");
+  c.steps = h.at("step_count");
+  const Eigen::Index nodes = h.at("num_nodes").get<Eigen::Index>();
+  const Section x = section(h, data, "x"), v = section(h, data, "v");
+  if (nodes < 0 || x.n != static_cast<size_t>(3 * nodes) || v.n != x.n)
+    throw std::runtime_error("archive: checkpoint positions or velocities do not match its " + std::to_string(nodes) + " nodes");
+  c.x = Eigen::Map<const core::Positions>(x.p, 3, nodes);
+  c.v = Eigen::Map<const core::Positions>(v.p, 3, nodes);
+  c.p = vector_of(section(h, data, "p"));
+  c.linear.analysed = sparse_of(h, data, "linear.analysed");
+  c.linear.factored = sparse_of(h, data, "linear.factored");
+  return c;
+}
+
+core::SimulatorCheckpoint real_time_checkpoint_of(const json& h, const std::vector<double>& data) {
   core::SimulatorCheckpoint c;
   c.time_s = h.at("time_s");
   c.step_count = h.at("step_count");
@@ -67,6 +110,15 @@ core::SimulatorCheckpoint checkpoint_of(const json& h, const std::vector<double>
     c.solver.factors.push_back(std::move(F));
     ++i;
   }
+  return c;
+}
+
+}  // namespace
+
+service::EngineCheckpoint checkpoint_of(const json& h, const std::vector<double>& data, std::string* parameter_state) {
+  service::EngineCheckpoint c;
+  if (h.value("tier", std::string("real_time")) == "accurate") c = accurate_checkpoint_of(h, data);
+  else c = real_time_checkpoint_of(h, data);
   if (parameter_state) *parameter_state = h.at("parameter_state");
   return c;
 }

@@ -37,9 +37,10 @@ std::string sidecar_path(const std::string& h5_path) {
 }  // namespace detail
 
 namespace detail {
-// The sidecar's text for F frames (their times) of an archive of N nodes and E elements.
+// The sidecar's text for F frames (their times) of an archive of N nodes per frame and E
+// elements, of 10 nodes each when `order2` (Tetrahedron_10 from /mesh/order2_tets).
 std::string xdmf_text(const std::string& h5_path, long F, const std::vector<double>& times, hsize_t N, hsize_t E, bool velocities,
-                      bool displacement) {
+                      bool displacement, bool order2) {
   const std::string file = std::filesystem::path(h5_path).filename().string();
   const std::string n = std::to_string(N), e = std::to_string(E), f = std::to_string(F);
   std::ostringstream x;
@@ -55,9 +56,9 @@ std::string xdmf_text(const std::string& h5_path, long F, const std::vector<doub
   };
   for (long i = 0; i < F; ++i) {
     x << "<Grid Name=\"frame " << i << "\" GridType=\"Uniform\">\n<Time Value=\"" << times[static_cast<size_t>(i)] << "\"/>\n"
-      << "<Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"" << e << "\">\n"
-      << " <DataItem Dimensions=\"" << e << " 4\" NumberType=\"Int\" Precision=\"4\" Format=\"HDF\">" << file
-      << ":/mesh/tets</DataItem>\n</Topology>\n"
+      << "<Topology TopologyType=\"" << (order2 ? "Tetrahedron_10" : "Tetrahedron") << "\" NumberOfElements=\"" << e << "\">\n"
+      << " <DataItem Dimensions=\"" << e << (order2 ? " 10" : " 4") << "\" NumberType=\"Int\" Precision=\"4\" Format=\"HDF\">"
+      << file << (order2 ? ":/mesh/order2_tets" : ":/mesh/tets") << "</DataItem>\n</Topology>\n"
       << "<Geometry GeometryType=\"XYZ\">\n <DataItem Dimensions=\"" << n
       << " 3\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">" << slab("positions", i, true)
       << "</DataItem>\n</Geometry>\n";
@@ -85,7 +86,7 @@ std::string xdmf_text(const std::string& h5_path, long F, const std::vector<doub
 void write_xdmf(const std::string& h5_path) {
   long F = 0;
   std::vector<double> times;
-  bool velocities = false, displacement = false;
+  bool velocities = false, displacement = false, order2 = false;
   hsize_t N = 0, E = 0;
   {
     ArchiveReader r(h5_path, /*follow=*/true);
@@ -93,10 +94,11 @@ void write_xdmf(const std::string& h5_path) {
     times = r.times();
     velocities = r.header().has_velocities;
     displacement = r.header().has_displacement;
-    N = static_cast<hsize_t>(r.header().rest_positions.cols());
+    order2 = r.header().order == 2;
+    N = static_cast<hsize_t>(order2 ? r.header().element_rest_positions.cols() : r.header().rest_positions.cols());
     E = r.header().tets.size();
   }
-  write_atomically(sidecar_path(h5_path), detail::xdmf_text(h5_path, F, times, N, E, velocities, displacement));
+  write_atomically(sidecar_path(h5_path), detail::xdmf_text(h5_path, F, times, N, E, velocities, displacement, order2));
 }
 
 

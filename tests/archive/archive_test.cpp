@@ -48,12 +48,13 @@ TEST(Archive, FramesCheckpointsAndCommandsReadBackAsRecorded) {
   std::vector<long> expected_steps;
   core::SimulatorCheckpoint at_step_12;
   {
-    archive::ArchiveWriter w(o, sc, sim, "test");
+    service::RealTimeEngine engine(sim);
+    archive::ArchiveWriter w(o, sc, engine, "test");
     for (int s = 1; s <= 20; ++s) {
       const core::StepReport r = sim.step();
       archive::FrameExtras x;
       for (const auto& c : sc.cavities) x.cavity_volumes_m3.emplace_back(c.name, core::cavity_volume(c.surface, sim.positions()));
-      w.record_frame(sim, r, x);
+      w.record_frame(engine, r, x);
       if (s % 2 == 0) {
         expected_x.push_back(sim.positions().cast<float>());
         expected_a.emplace_back(sim.active_tension().begin(), sim.active_tension().end());
@@ -158,12 +159,13 @@ TEST(Archive, BadFilesAreRefusedWithAClearMessage) {
   archive::ArchiveOptions o;
   o.path = dir.file("run.h5");
   {
-    archive::ArchiveWriter w(o, sc, sim, "test");
+    service::RealTimeEngine engine(sim);
+    archive::ArchiveWriter w(o, sc, engine, "test");
     for (int s = 0; s < 3; ++s) {
       const core::StepReport r = sim.step();
       archive::FrameExtras x;
       for (const auto& c : sc.cavities) x.cavity_volumes_m3.emplace_back(c.name, 0.0);
-      w.record_frame(sim, r, x);
+      w.record_frame(engine, r, x);
     }
   }
   std::filesystem::copy_file(o.path, dir.file("v99.h5"));

@@ -60,13 +60,14 @@ struct Template {
       fiberfem::archive::ArchiveOptions o;
       o.path = path;
       o.checkpoint_every_s = 0.02;
-      fiberfem::archive::ArchiveWriter w(o, scene, sim, "fuzz");
+      fiberfem::service::RealTimeEngine engine(sim);
+      fiberfem::archive::ArchiveWriter w(o, scene, engine, "fuzz");
       for (int i = 0; i < 4; ++i) {
         const auto r = sim.step();
-        w.record_frame(sim, r, {});
+        w.record_frame(engine, r, {});
         if (i == 1) w.record_command({sim.step_count(), sim.time_s(), "c1", "pause", "{}", true, ""});
       }
-      w.checkpoint(sim, "{}");
+      w.checkpoint(engine, "{}");
       w.close();
     }
     std::ifstream in(path, std::ios::binary);

@@ -127,8 +127,8 @@ class BadInput : public ::testing::Test {
     }
     // Another format version, and a file of another program, made with h5py.
     r = run_process({FIBERFEM_PYTHON, "-c",
-                     "import h5py, shutil, sys; d = sys.argv[1]; shutil.copy(d + '/good.h5', d + '/version2.h5')\n"
-                     "with h5py.File(d + '/version2.h5', 'r+') as f: f.attrs['format_version'] = 2\n"
+                     "import h5py, shutil, sys; d = sys.argv[1]; shutil.copy(d + '/good.h5', d + '/version3.h5')\n"
+                     "with h5py.File(d + '/version3.h5', 'r+') as f: f.attrs['format_version'] = 3\n"
                      "with h5py.File(d + '/other.h5', 'w') as f: f['x'] = [1, 2, 3]\n"
                      "shutil.copy(d + '/good.h5', d + '/bad-tets.h5')\n"
                      "with h5py.File(d + '/bad-tets.h5', 'r+') as f: f['mesh/tets'][0, 0] = 1000\n"
@@ -215,7 +215,7 @@ const std::vector<Row>& rows() {
       {"run --resume", "RUN.h5", "empty file", {"run", "{D}/tiny.yaml", "--resume", "{D}/empty.h5"}, {"empty.h5", "not an HDF5 file"}},
       {"run --resume", "RUN.h5", "not HDF5", {"run", "{D}/tiny.yaml", "--resume", "{D}/not-hdf5.h5"}, {"not-hdf5.h5", "not an HDF5 file"}},
       {"run --resume", "RUN.h5", "HDF5 of another program", {"run", "{D}/tiny.yaml", "--resume", "{D}/other.h5"}, {"other.h5", "not a fiberfem archive"}},
-      {"run --resume", "RUN.h5", "format version 2", {"run", "{D}/tiny.yaml", "--resume", "{D}/version2.h5"}, {"version2.h5", "version 2", "reads version 1"}},
+      {"run --resume", "RUN.h5", "format version 3", {"run", "{D}/tiny.yaml", "--resume", "{D}/version3.h5"}, {"version3.h5", "version 3", "reads version 1 and 2"}},
       {"run --resume", "RUN.h5", "truncated (first half)", {"run", "{D}/tiny.yaml", "--resume", "{D}/truncated.h5"}, {"truncated.h5"}},
       {"run --resume", "RUN.h5", "another scene's archive (wrong mesh)", {"run", "{D}/bigger.yaml", "--resume", "{D}/good.h5"}, {"--resume", "good.h5", "mesh with 12 nodes", "another scene"}},
       {"run --resume", "RUN.h5@T", "T not a number", {"run", "{D}/tiny.yaml", "--resume", "{D}/good.h5@soon"}, {"--resume", "soon", "not a time"}},
@@ -224,14 +224,14 @@ const std::vector<Row>& rows() {
       {"archive info", "RUN.h5", "missing", {"archive", "info", "{D}/nowhere.h5"}, {"nowhere.h5"}},
       {"archive info", "RUN.h5", "a directory", {"archive", "info", "{D}/a-directory"}, {"a-directory", "is a directory"}},
       {"archive info", "RUN.h5", "not HDF5", {"archive", "info", "{D}/not-hdf5.h5"}, {"not-hdf5.h5", "not an HDF5 file"}},
-      {"archive info", "RUN.h5", "format version 2", {"archive", "info", "{D}/version2.h5"}, {"version2.h5", "version 2"}},
+      {"archive info", "RUN.h5", "format version 3", {"archive", "info", "{D}/version3.h5"}, {"version3.h5", "version 3"}},
       {"archive info", "RUN.h5", "truncated", {"archive", "info", "{D}/truncated.h5"}, {"truncated.h5"}},
       {"archive info", "mesh/tets", "a node index out of range", {"archive", "info", "{D}/bad-tets.h5"}, {"bad-tets.h5", "mesh/tets[0] = 1000", "not a node index"}},
       {"run --resume", "checkpoints/headers", "garbage bytes in the last checkpoint", {"run", "{D}/tiny.yaml", "--resume", "{D}/bad-checkpoint.h5"}, {"bad-checkpoint.h5", "checkpoint", "malformed"}},
       {"archive recover", "RUN.h5", "not HDF5", {"archive", "recover", "{D}/not-hdf5.h5"}, {"not-hdf5.h5", "not an HDF5 file"}},
       {"replay", "RUN.h5", "missing", {"replay", "{D}/nowhere.h5", "--exit-at-end"}, {"nowhere.h5"}},
       {"replay", "RUN.h5", "not HDF5", {"replay", "{D}/not-hdf5.h5", "--exit-at-end"}, {"not-hdf5.h5", "not an HDF5 file"}},
-      {"replay", "RUN.h5", "format version 2", {"replay", "{D}/version2.h5", "--exit-at-end"}, {"version2.h5", "version 2"}},
+      {"replay", "RUN.h5", "format version 3", {"replay", "{D}/version3.h5", "--exit-at-end"}, {"version3.h5", "version 3"}},
       {"replay", "--rate", "0", {"replay", "{D}/good.h5", "--rate", "0"}, {"--rate"}},
       {"replay", "--rate", "NaN", {"replay", "{D}/good.h5", "--rate", "nan"}, {"--rate", "nan"}},
       // Cycle scripts (parsed before any run is looked for).

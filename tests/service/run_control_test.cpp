@@ -5,6 +5,10 @@
 #include "service/run_control.hpp"
 
 #include "core/static_solver.hpp"
+#include "io/scene_accurate.hpp"
+#include "service/engine_accurate.hpp"
+
+#include "accurate_beam_scene.hpp"
 #include "io/scene.hpp"
 
 #include <gtest/gtest.h>
@@ -92,20 +96,6 @@ TEST(RunControl, BadCommandsAreRefusedWithAReasonAndChangeNothing) {
 
 // A force spread over the free end, held until the damped beam settles, must give the
 // static equilibrium of the same load (the static Newton solver, an independent path).
-// The service steps the real-time tier: an accurate scene is refused by name, never run on
-// its laws' small-strain limits.
-TEST(RunControl, AnAccurateSceneIsRefusedByName) {
-  const io::Scene sc = io::parse_scene(kBeam, "beam", "",
-                                       {"regions[0].material={law: neo_hookean, mu: 2.0e4, bulk_modulus: 2.0e5, density: 1000.0}"});
-  ASSERT_TRUE(sc.accurate());
-  try {
-    RunControl rc(sc);
-    ADD_FAILURE() << "expected a refusal";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("accurate tier"), std::string::npos) << e.what();
-  }
-}
-
 TEST(RunControl, AppliedForceSettlesToTheStaticEquilibriumOfThatLoad) {
   io::Scene sc = io::parse_scene(kBeam, "beam", "", {"loads.gravity=[0, 0, 0]", "regions[0].damping.mass=60"});
   RunControl rc(sc);
@@ -300,6 +290,142 @@ TEST(RunControl, ParameterStateAfterCommandsResumesBitForBit) {
   ASSERT_TRUE(commanded.apply("set_material", R"({"E_L": 120e3})").accepted);
   EXPECT_EQ(earlier.simulator().model().region_materials[0].stiffness(),
             commanded.simulator().model().region_materials[0].stiffness());
+}
+
+
+io::Scene accurate_beam(std::vector<std::string> overrides = {}) {
+  return io::parse_scene(testing::kAccurateBeamScene, "accurate-beam", "", overrides);
+}
+
+// Steps through the run's engine (either tier); @return the corner positions.
+core::Positions step_engine(RunControl& rc, int steps) {
+  for (int i = 0; i < steps; ++i) {
+    rc.before_step();
+    const core::StepReport r = rc.engine().step();
+    EXPECT_NE(r.status, core::StepStatus::failed) << r.message;
+  }
+  return rc.engine().positions();
+}
+
+// The accurate tier's own time stepper, driven directly as `fiberfem run` drives it (the
+// loads at each step's end): the reference the service's engine must equal.
+core::Positions direct_run(const io::Scene& sc, int steps) {
+  const io::AccurateProblem ap = io::accurate_problem(sc);
+  core::hyperelastic::DynamicSolver solver(*ap.problem, io::accurate_dynamic_settings(sc, ap));
+  std::vector<double> tension;
+  for (int s = 1; s <= steps; ++s) EXPECT_TRUE(solver.step(io::accurate_loading(sc, s * sc.settings.dt_s, tension)).converged);
+  return solver.positions().leftCols(ap.mesh->num_corner_nodes());
+}
+
+TEST(RunControl, AnAccurateSceneStepsOnTheAccurateTier) {
+  const io::Scene sc = accurate_beam();
+  ASSERT_TRUE(sc.accurate());
+  RunControl rc(sc);
+  ASSERT_NE(rc.engine().accurate(), nullptr);
+  EXPECT_EQ(rc.engine().real_time(), nullptr);
+  EXPECT_THROW(rc.simulator(), std::logic_error);
+  const core::Positions x = step_engine(rc, 12);
+  EXPECT_EQ(x.cols(), sc.model.mesh.num_nodes());  // the corner mesh the topology names
+  const core::Positions ref = direct_run(sc, 12);
+  const double tip = (ref - sc.model.mesh.rest_positions()).cwiseAbs().maxCoeff();
+  EXPECT_GT(tip, 1e-4);  // the beam bends (a tenth of a millimetre and more)
+  EXPECT_LT((x - ref).cwiseAbs().maxCoeff(), 1e-9 * tip);
+  EXPECT_NEAR(rc.engine().time_s(), 0.12, 1e-12);
+  EXPECT_EQ(rc.engine().step_count(), 12);
+}
+
+// A law constant changed by command before the first step gives the same run, bit for
+// bit, as a scene that has it; changed mid-run it changes the answer from then on.
+TEST(RunControl, ALiveLawCommandChangesTheAnswerAsTheSceneKeyDoes) {
+  RunControl live(accurate_beam());
+  const CommandResult r = live.apply("set_material", R"({"C": 4000})");  // the law's own key; law kept
+  ASSERT_TRUE(r.accepted) << r.reason;
+  RunControl fresh(accurate_beam({"regions[0].material.C=4000"}));
+  RunControl unchanged(accurate_beam());
+  const core::Positions a = step_engine(live, 8), b = step_engine(fresh, 8), c = step_engine(unchanged, 8);
+  EXPECT_EQ((a - b).cwiseAbs().maxCoeff(), 0.0);
+  const double du = (c - accurate_beam().model.mesh.rest_positions()).cwiseAbs().maxCoeff();
+  EXPECT_GT((a - c).cwiseAbs().maxCoeff(), 0.1 * du);  // twice as stiff: clearly less bent
+  // The running scene carries the new constant (what a recording's header and checkpoints hold).
+  EXPECT_NE(live.running_scene().yaml_text.find("4000"), std::string::npos);
+  // Bad law arguments are refused by name and change nothing.
+  const unsigned v = live.parameter_version();
+  const CommandResult bad = live.apply("set_material", R"({"b_f": -1})");
+  EXPECT_FALSE(bad.accepted);
+  EXPECT_NE(bad.reason.find("b_f"), std::string::npos) << bad.reason;
+  const CommandResult stiff = live.apply("set_damping", R"({"stiffness": 0.01})");
+  EXPECT_FALSE(stiff.accepted);
+  EXPECT_NE(stiff.reason.find("mass damping only"), std::string::npos) << stiff.reason;
+  const CommandResult solver = live.apply("set_solver", R"({"tolerance": 1e-8})");
+  EXPECT_FALSE(solver.accepted);
+  EXPECT_NE(solver.reason.find("accurate tier"), std::string::npos) << solver.reason;
+  EXPECT_EQ(live.parameter_version(), v);
+  EXPECT_EQ((step_engine(live, 3) - step_engine(fresh, 3)).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// Checkpoint, go on with other parameters, restore: the run continues exactly as the one
+// that never left the checkpoint (positions, velocities, pressures, time, step count and
+// the lagged factor all restored, the law constants of the checkpoint rebuilt).
+TEST(RunControl, AnAccurateRunRestoresBitForBit) {
+  RunControl rc(accurate_beam());
+  step_engine(rc, 4);
+  ASSERT_TRUE(rc.apply("set_material", R"({"C": 3000})").accepted);
+  step_engine(rc, 2);
+  ASSERT_TRUE(rc.apply("checkpoint", R"({"name": "a"})").accepted);
+  const core::Positions x_on = step_engine(rc, 5);
+  const core::Positions v_on = rc.engine().velocities();
+  const Eigen::VectorXd p_on = rc.engine().accurate()->pressures();
+  ASSERT_TRUE(rc.apply("set_material", R"({"C": 1500})").accepted);
+  step_engine(rc, 3);
+  const CommandResult back = rc.apply("restore", R"({"name": "a"})");
+  ASSERT_TRUE(back.accepted) << back.reason;
+  EXPECT_EQ(rc.engine().step_count(), 6);
+  const core::Positions x_back = step_engine(rc, 5);
+  EXPECT_EQ((x_back - x_on).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((core::Positions(rc.engine().velocities()) - v_on).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((rc.engine().accurate()->pressures() - p_on).cwiseAbs().maxCoeff(), 0.0);
+  // A run resumed in another RunControl from the parameter state and checkpoint alike.
+  RunControl other(accurate_beam());
+  ASSERT_TRUE(rc.apply("restore", R"({"name": "a"})").accepted);
+  other.restore_parameter_state(rc.parameter_state_json());
+  other.engine().restore(rc.engine().checkpoint());
+  EXPECT_EQ((step_engine(other, 5) - x_on).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// apply_force on the accurate tier: a nodal load on the corner nodes it names.
+TEST(RunControl, AForceCommandLoadsTheAccurateTier) {
+  RunControl pushed(accurate_beam({"loads.tractions=[]"}));
+  ASSERT_TRUE(pushed.apply("apply_force", R"({"name": "up", "target": {"node_set": "xmax"}, "force": [0, 0, 1e-4]})").accepted);
+  const core::Positions x = step_engine(pushed, 10);
+  const io::Scene sc = accurate_beam();
+  const auto& xmax = sc.model.mesh.node_set("xmax");
+  for (int n : xmax) EXPECT_GT(x(2, n) - sc.model.mesh.rest_positions()(2, n), 1e-5) << "node " << n;
+  ASSERT_TRUE(pushed.apply("clear_force", R"({"name": "up"})").accepted);
+  const CommandResult bad = pushed.apply("apply_force", R"({"target": {"node": 100000}, "force": [0, 0, 1]})");
+  EXPECT_FALSE(bad.accepted);
+  EXPECT_NE(bad.reason.find("target.node"), std::string::npos) << bad.reason;
+}
+
+
+// set_contraction drives the accurate tier's active tension: given at rest, the run of a
+// scene with that contraction, bit for bit; the published activation follows the twitch.
+TEST(RunControl, AContractionCommandDrivesTheAccurateTiersActiveTension) {
+  const std::vector<std::string> gentle = {"loads.tractions=[]",
+                                           "contraction={peak_tension: 200, heart_rate: 60, twitch: {shape: sine, systole: 0.3}}"};
+  RunControl live(accurate_beam(gentle));
+  const CommandResult r = live.apply("set_contraction", R"({"peak_tension": 400})");
+  ASSERT_TRUE(r.accepted) << r.reason;
+  std::vector<std::string> stronger = gentle;
+  stronger[1] = "contraction={peak_tension: 400, heart_rate: 60, twitch: {shape: sine, systole: 0.3}}";
+  RunControl fresh(accurate_beam(stronger));
+  RunControl unchanged(accurate_beam(gentle));
+  const core::Positions a = step_engine(live, 10), b = step_engine(fresh, 10), c = step_engine(unchanged, 10);
+  EXPECT_EQ((a - b).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT((a - c).cwiseAbs().maxCoeff(), 1e-6);  // twice the tension: a different shape
+  ASSERT_EQ(live.engine().active_tension().size(), static_cast<size_t>(live.engine().model().mesh.num_elements()));
+  EXPECT_GT(live.engine().active_tension()[0], 0.0);  // 0.1 s into the beat's rise
+  EXPECT_LE(live.engine().active_tension()[0], 400.0);
+  EXPECT_DOUBLE_EQ(live.peak_tension_pa(), 400.0);
 }
 
 }  // namespace

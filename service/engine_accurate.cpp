@@ -1,0 +1,85 @@
+// The accurate tier's time steps as the service's engine (service/engine_accurate.hpp).
+
+#include "service/engine_accurate.hpp"
+
+#include <chrono>
+#include <stdexcept>
+
+namespace fiberfem::service {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+}  // namespace
+
+AccurateEngine::AccurateEngine(const io::Scene& scene) : scene_(scene), problem_(io::accurate_problem(scene)) {
+  solver_ = std::make_unique<core::hyperelastic::DynamicSolver>(*problem_.problem, io::accurate_dynamic_settings(scene_, problem_));
+  update_tension();
+}
+
+// The loads at the step's end time (backward Euler), as `fiberfem run` steps them.
+core::StepReport AccurateEngine::step() {
+  const auto t0 = Clock::now();
+  const core::hyperelastic::NewtonReport before = solver_->totals();
+  std::vector<double> tension;
+  core::hyperelastic::Loading loading = io::accurate_loading(scene_, solver_->time_s() + dt_s(), tension);
+  if (nodal_forces_n_.cols() > 0) loading.nodal_forces_n = &nodal_forces_n_;
+  const core::hyperelastic::DynamicStepReport r = solver_->step(loading);
+  const core::hyperelastic::NewtonReport after = solver_->totals();
+  core::StepReport rep;
+  rep.status = r.converged ? core::StepStatus::ok : core::StepStatus::failed;
+  rep.message = r.message;
+  rep.solver_iterations = r.iterations;
+  rep.solver_factorizations = after.factorisations - before.factorisations;
+  rep.time.assembly_s = after.assembly_s - before.assembly_s;
+  rep.time.solve_s = after.factor_s - before.factor_s;
+  rep.time_s = solver_->time_s();
+  if (r.converged) tension_pa_ = std::move(tension);
+  // Kinetic energy of the lumped masses and the fastest node, of the state now.
+  const Eigen::VectorXd& m = solver_->node_masses();
+  const core::Positions& v = solver_->velocities();
+  for (int n = 0; n < v.cols(); ++n) {
+    rep.kinetic_energy_j += 0.5 * m(n) * v.col(n).squaredNorm();
+    rep.max_speed_m_s = std::max(rep.max_speed_m_s, v.col(n).norm());
+  }
+  rep.time.total_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  return rep;
+}
+
+void AccurateEngine::update_tension() { io::accurate_loading(scene_, solver_->time_s(), tension_pa_); }
+
+void AccurateEngine::set_point_forces(const std::vector<core::PointForce>& forces) {
+  const core::hyperelastic::ElementMesh& mesh = *problem_.mesh;
+  core::Positions f = core::Positions::Zero(3, forces.empty() ? 0 : mesh.num_nodes());
+  for (const core::PointForce& p : forces) {
+    if (p.node < 0 || p.node >= mesh.num_corner_nodes())
+      throw std::invalid_argument("point force on node " + std::to_string(p.node) + ": the mesh has " +
+                                  std::to_string(mesh.num_corner_nodes()) + " nodes");
+    if (!p.force_n.allFinite()) throw std::invalid_argument("point force on node " + std::to_string(p.node) + " is not finite");
+    f.col(p.node) += p.force_n;
+  }
+  nodal_forces_n_ = std::move(f);
+}
+
+void AccurateEngine::restore(const EngineCheckpoint& c) {
+  const auto* s = std::get_if<core::hyperelastic::DynamicState>(&c);
+  if (s == nullptr) throw std::invalid_argument("checkpoint of the real-time tier: this run is on the accurate tier");
+  solver_->restore(*s);
+  update_tension();
+}
+
+void AccurateEngine::reset() {
+  solver_ = std::make_unique<core::hyperelastic::DynamicSolver>(*problem_.problem, solver_->settings());
+  update_tension();
+}
+
+std::unique_ptr<AccurateEngine> AccurateEngine::rebuilt(const io::Scene& running) {
+  auto next = std::make_unique<AccurateEngine>(running);
+  next->solver_->continue_from(*solver_);
+  next->nodal_forces_n_ = nodal_forces_n_;
+  next->update_tension();
+  return next;
+}
+
+}  // namespace fiberfem::service
