@@ -4,6 +4,7 @@
 
 #include "service/batch_run.hpp"
 #include "service/batch_report.hpp"
+#include "service/batch_circulation.hpp"
 #include "service/batch_series.hpp"
 #include "service/stop_signals.hpp"
 
@@ -154,6 +155,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
   const core::Energies e0 = run.simulator().energies();
   const StopSignals stop_signals;  // restored however the loop ends (a step can throw)
   detail::RunSeries series(sc, run.simulator());
+  detail::CirculationSeries circulation(sc, run.simulator());
   detail::StepTotals totals;
   totals.max_kinetic_j = e0.kinetic_j;
   start(run, o, report, out);
@@ -177,6 +179,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
       }
       done = s;
       series.add(run.simulator(), run.cavity_volumes());
+      circulation.add(run.simulator());
       if (run.recorded_frames() != frames_before) log_frame(run, o, out);
       totals.add(r);
       char line[512];
@@ -201,6 +204,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
   totals.report(sc, sim, e0, steps, done, wall, report);
   report["probes"] = detail::probes_json(sc, sim.positions());
   series.finish(sim, report, out);
+  circulation.finish(report, out);
   const int rc = status == "completed" ? 0 : 1;
   if (o.compare_static && rc == 0) compare_static(sc, sim, report, out);
   return rc;
