@@ -33,13 +33,7 @@ void Simulator::setup_circulation() {
     c.parameters.chambers[static_cast<size_t>(cav.chamber)].kind = circulation::ChamberKind::external;
     // The pressure does work on the cavity's volume only if the lid across its rim stays
     // put: every rim node must be fixed.
-    int open = 0;
-    for (int n : cav.surface.rim_nodes)
-      for (int k = 0; k < 3; ++k)
-        if (model_.fixed_dofs.empty() || !model_.fixed_dofs[static_cast<size_t>(3 * n + k)]) {
-          ++open;
-          break;
-        }
+    const int open = open_rim_nodes(cav.surface, model_.fixed_dofs);
     if (open > 0)
       fail("cavity " + cav.name + " is not closed: " + std::to_string(open) + " of the " +
            std::to_string(cav.surface.rim_nodes.size()) + " nodes of its rim are not fixed (fix the base)");

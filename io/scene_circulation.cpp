@@ -87,13 +87,7 @@ void read_initial(const CheckedMap& c, cc::State& s) {
 // A coupled cavity's rim must be fixed: otherwise the pressure does not work on the volume
 // it measures (the lid across the rim would move).
 void check_closed(const CheckedMap& v, const std::string& key, const CavityMeasure& cav, const core::Model& model) {
-  int open = 0;
-  for (int n : cav.surface.rim_nodes)
-    for (int k = 0; k < 3; ++k)
-      if (model.fixed_dofs.empty() || !model.fixed_dofs[static_cast<size_t>(3 * n + k)]) {
-        ++open;
-        break;
-      }
+  const int open = core::open_rim_nodes(cav.surface, model.fixed_dofs);
   if (open > 0)
     v.checks().fail(v[key], v.sub(key),
                     "cavity '" + cav.name + "' is not closed: " + std::to_string(open) + " of the " +

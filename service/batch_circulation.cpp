@@ -40,27 +40,18 @@ void CirculationSeries::add(const core::Simulator& sim) {
   double volume[4] = {s.volume_m3[0], s.volume_m3[1], s.volume_m3[2], s.volume_m3[3]};
   const auto& cavities = sim.model().circulation.cavities;
   for (size_t k = 0; k < cavities.size(); ++k) volume[cavities[k].chamber] = sim.coupled_cavity_volumes()[k];
+  static const char* const chambers[4] = {"la", "lv", "ra", "rv"};  // by ChamberId
+  static const char* const compartments[4] = {"systemic_arterial", "systemic_venous", "pulmonary_arterial",
+                                              "pulmonary_venous"};  // by CompartmentId
+  static const char* const valves[4] = {"mitral", "aortic", "tricuspid", "pulmonary_valve"};  // by ValveId
   push("time_s", s.time_s);
-  push("lv_pressure_pa", o.chamber_pa[cc::lv]);
-  push("rv_pressure_pa", o.chamber_pa[cc::rv]);
-  push("la_pressure_pa", o.chamber_pa[cc::la]);
-  push("ra_pressure_pa", o.chamber_pa[cc::ra]);
-  push("lv_volume_m3", volume[cc::lv]);
-  push("rv_volume_m3", volume[cc::rv]);
-  push("la_volume_m3", volume[cc::la]);
-  push("ra_volume_m3", volume[cc::ra]);
-  push("systemic_arterial_pressure_pa", s.pressure_pa[cc::ar_sys]);
-  push("systemic_venous_pressure_pa", s.pressure_pa[cc::ven_sys]);
-  push("pulmonary_arterial_pressure_pa", s.pressure_pa[cc::ar_pul]);
-  push("pulmonary_venous_pressure_pa", s.pressure_pa[cc::ven_pul]);
-  push("mitral_flow_m3_s", o.valve_m3_s[cc::mitral]);
-  push("aortic_flow_m3_s", o.valve_m3_s[cc::aortic]);
-  push("tricuspid_flow_m3_s", o.valve_m3_s[cc::tricuspid]);
-  push("pulmonary_valve_flow_m3_s", o.valve_m3_s[cc::pulmonic]);
-  push("systemic_arterial_flow_m3_s", s.flow_m3_s[cc::ar_sys]);
-  push("systemic_venous_flow_m3_s", s.flow_m3_s[cc::ven_sys]);
-  push("pulmonary_arterial_flow_m3_s", s.flow_m3_s[cc::ar_pul]);
-  push("pulmonary_venous_flow_m3_s", s.flow_m3_s[cc::ven_pul]);
+  for (int i = 0; i < 4; ++i) {
+    push(std::string(chambers[i]) + "_pressure_pa", o.chamber_pa[static_cast<size_t>(i)]);
+    push(std::string(chambers[i]) + "_volume_m3", volume[i]);
+    push(std::string(compartments[i]) + "_pressure_pa", s.pressure_pa[static_cast<size_t>(i)]);
+    push(std::string(compartments[i]) + "_flow_m3_s", s.flow_m3_s[static_cast<size_t>(i)]);
+    push(std::string(valves[i]) + "_flow_m3_s", o.valve_m3_s[static_cast<size_t>(i)]);
+  }
   push("pressure_iterations", s.time_s > 0 ? sim.circulation_iterations() : 0);
   iterations_ += sim.circulation_iterations();
   max_iterations_ = std::max(max_iterations_, sim.circulation_iterations());

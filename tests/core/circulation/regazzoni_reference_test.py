@@ -64,13 +64,13 @@ def main():
     (r_vlv, r_plv, r_pao, r_vrv, r_ppa) = last_beat(ref_t, period, ref["V_LV"], ref["p_LV"], ref["p_AR_SYS"],
                                                     ref["V_RV"], ref["p_AR_PUL"])
     checks = [
-        ("LV end-diastolic volume, mL", o_vlv.max(), r_vlv.max(), 0.01),
-        ("LV end-systolic volume, mL", o_vlv.min(), r_vlv.min(), 0.02),
-        ("LV peak pressure, mmHg", o_plv.max(), r_plv.max(), 0.01),
-        ("aortic systolic pressure, mmHg", o_pao.max(), r_pao.max(), 0.01),
-        ("aortic diastolic pressure, mmHg", o_pao.min(), r_pao.min(), 0.01),
-        ("RV end-diastolic volume, mL", o_vrv.max(), r_vrv.max(), 0.01),
-        ("pulmonary arterial systolic pressure, mmHg", o_ppa.max(), r_ppa.max(), 0.02),
+        ("LV end-diastolic volume, mL", o_vlv.max(), r_vlv.max(), 0.002),
+        ("LV end-systolic volume, mL", o_vlv.min(), r_vlv.min(), 0.002),
+        ("LV peak pressure, mmHg", o_plv.max(), r_plv.max(), 0.002),
+        ("aortic systolic pressure, mmHg", o_pao.max(), r_pao.max(), 0.002),
+        ("aortic diastolic pressure, mmHg", o_pao.min(), r_pao.min(), 0.002),
+        ("RV end-diastolic volume, mL", o_vrv.max(), r_vrv.max(), 0.002),
+        ("pulmonary arterial systolic pressure, mmHg", o_ppa.max(), r_ppa.max(), 0.002),
     ]
     failed = False
     for name, a, b, tol in checks:
