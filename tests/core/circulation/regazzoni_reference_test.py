@@ -10,6 +10,8 @@ import csv
 import io
 import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 import numpy as np
 from circulation.regazzoni2020 import Regazzoni2020
@@ -53,8 +55,10 @@ def main():
     total = ours["total"]
     assert np.max(np.abs(total - total[0])) < 1e-9 * total[0], "blood volume not conserved"
 
-    model = Regazzoni2020(parameters=paper_parameters(), initial_state=initial_state(), verbose=False)
-    hist = model.solve(num_beats=BEATS, dt=1e-4, dt_eval=1e-3)
+    with tempfile.TemporaryDirectory() as out:  # the package writes its parameters there
+        model = Regazzoni2020(parameters=paper_parameters(), initial_state=initial_state(), verbose=False,
+                              outdir=Path(out))
+        hist = model.solve(num_beats=BEATS, dt=1e-4, dt_eval=1e-3)
     period = 0.8
     ref_t = np.asarray(model.times_eval)[: len(hist["V_LV"])]
     ref = {k: np.asarray(hist[k]) for k in ("V_LV", "p_LV", "p_AR_SYS", "V_RV", "p_AR_PUL")}
