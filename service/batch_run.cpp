@@ -61,6 +61,7 @@ int run_static(const io::Scene& sc, json& report, std::ostream& out) {
   if (sc.model.contraction.enabled())
     out << "static: note: the static solve has no active stress; the contraction is left out (passive equilibrium)\n";
   if (!sc.cavities.empty()) out << "static: note: cavity volumes are reported by dynamic runs only\n";
+  if (sc.model.circulation.enabled()) out << "static: note: the circulation loads the cavities in dynamic runs only\n";
   const auto t0 = Clock::now();
   core::Positions x;
   const core::StaticReport r = static_equilibrium(sc, x);

@@ -98,4 +98,5 @@ TEST(SceneCirculation, BadInputNamesTheKey) {
   expect_error(replace_once(good, "  ventricles: {left: lv}\n", ""), {"circulation", "needs ventricles"});
   expect_error(replace_once(good, "scale: {pressure: 0.1", "scale: {pressure: 0"), {"circulation.scale.pressure"});
   expect_error(replace_once(good, "  systemic:", "  systemic_typo: 1\n  systemic:"), {"circulation.systemic_typo", "unknown key"});
+  expect_error(replace_once(good, "material: {E:", "material: {law: neo_hookean, E:"), {"circulation", "corotated tier only"});
 }
