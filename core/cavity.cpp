@@ -48,4 +48,15 @@ double cavity_volume(const CavitySurface& s, const Eigen::Ref<const Positions>& 
   return six_v / 6.0;
 }
 
+int open_rim_nodes(const CavitySurface& surface, const std::vector<std::uint8_t>& fixed_dofs) {
+  int open = 0;
+  for (int n : surface.rim_nodes)
+    for (int k = 0; k < 3; ++k)
+      if (fixed_dofs.empty() || !fixed_dofs[static_cast<size_t>(3 * n + k)]) {
+        ++open;
+        break;
+      }
+  return open;
+}
+
 }  // namespace fiberfem::core

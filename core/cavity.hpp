@@ -4,6 +4,7 @@
 
 #include "core/mesh.hpp"
 
+#include <cstdint>
 #include <vector>
 
 namespace fiberfem::core {
@@ -24,5 +25,10 @@ CavitySurface cavity_surface(const TetMesh& mesh, const std::vector<int>& surfac
 /// triangles, m^3. Positive for a cavity; exact for the polyhedron, invariant under rigid
 /// motions. A surface without a rim is closed already.
 double cavity_volume(const CavitySurface& surface, const Eigen::Ref<const Positions>& x);
+
+/// Rim nodes of `surface` with a component not fixed in `fixed_dofs` (3 per node; empty:
+/// nothing fixed). A cavity loaded by a pressure is closed when this is 0: the lid across
+/// its rim does not move, so the pressure works on exactly the volume cavity_volume measures.
+int open_rim_nodes(const CavitySurface& surface, const std::vector<std::uint8_t>& fixed_dofs);
 
 }  // namespace fiberfem::core

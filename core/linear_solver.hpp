@@ -175,6 +175,11 @@ class LinearSolver {
   virtual ~LinearSolver() = default;
   /// Solves with `x` as the initial guess (PCG) or ignoring it (direct).
   virtual SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
+  /// Another right-hand side with the matrix of the last solve (unchanged since): solvers
+  /// that factorise per solve reuse that factorisation.
+  virtual SolveStats solve_same_matrix(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+    return solve(A, b, x);
+  }
   virtual std::string name() const = 0;
   /// The factor of the last solve (solvers without one: factored false).
   virtual FactorInfo factor_info() const { return {}; }

@@ -3,6 +3,7 @@
 /// element, constraints and loads. Scene files are parsed outside core/ into this.
 
 #include "core/material.hpp"
+#include "core/circulation/coupling.hpp"
 #include "core/contraction.hpp"
 #include "core/mesh.hpp"
 
@@ -68,6 +69,9 @@ struct Model {
   Loads loads;
   /// Fiber-directed contraction; off unless a region has a peak tension (no per-step cost).
   Contraction contraction;
+  /// Cavity pressures from a lumped closed-loop circulation (core/circulation/); off
+  /// unless it names a cavity (no per-step cost then).
+  circulation::Coupling circulation;
 
   /// Fixes the given components (mask bit 0 = x, 1 = y, 2 = z) of each node.
   void fix_nodes(const std::vector<int>& nodes, unsigned component_mask = 0b111);

@@ -68,6 +68,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
     st_.active_tension_pa.assign(static_cast<size_t>(ne), 0.0);
     tension_table_ = model_.contraction.tabulate();
   }
+  if (model_.circulation.enabled()) setup_circulation();
   reset();
 }
 
@@ -120,6 +121,7 @@ void Simulator::reset() {
   st_.time_s = 0;
   st_.step_count = 0;
   st_.contraction_origin_s = 0;
+  if (model_.circulation.enabled()) reset_circulation();
 }
 
 void Simulator::apply_fixed() {

@@ -79,6 +79,9 @@ struct StepReport {
   int solver_factorizations = 0;  ///< Cholesky factorisations, summed over all attempts.
   int threads = 1;                ///< OpenMP threads the step ran on.
   double solver_residual = 0;     ///< Largest relative residual of the accepted attempt.
+  /// Newton iterations on the cavity pressures (Model::circulation), summed over the
+  /// accepted attempt's substeps; 0 without a circulation.
+  int circulation_iterations = 0;
   double kinetic_energy_j = 0;
   double elastic_energy_j = 0;
   int inverted_elements = 0;      ///< Elements with det F <= 0 at the last substep.
@@ -145,6 +148,13 @@ class Simulator {
   /// Active tension per element along its fiber, Pa, as the last step applied it (the
   /// contraction schedule or set_active_tension); empty when contraction is off.
   const std::vector<double>& active_tension() const { return st_.active_tension_pa; }
+  /// The lumped circulation's state after the last step (Model::circulation); its
+  /// external_pa are the coupled cavities' pressures (lv, rv), Pa.
+  const circulation::State& circulation_state() const { return st_.circulation; }
+  /// Volume of each coupled cavity (Model::circulation.cavities order) after the last step, m^3.
+  const std::vector<double>& coupled_cavity_volumes() const { return st_.cavity_volume_m3; }
+  /// Newton iterations on the cavity pressures in the last (sub)step.
+  int circulation_iterations() const { return st_.circulation_iterations; }
 
   const Model& model() const { return model_; }
   const SimulatorSettings& settings() const { return settings_; }
@@ -188,6 +198,12 @@ class Simulator {
   bool advance(double h, bool last_chance, StepReport& r, std::string& why);
   void assemble_step(double h, StepReport& r);
   bool solve_velocity(double h, StepReport& r, std::string& why);
+  bool solve_free(double h, StepReport& r, std::string& why);
+  bool take_velocity(double h, std::string& why);
+  // The circulation coupling (simulator_circulation.cpp).
+  void setup_circulation();
+  void reset_circulation();
+  bool solve_coupled(double h, StepReport& r, std::string& why);
   bool check_step(double h, double kinetic, double elastic, bool last_chance, StepReport& r, std::string& why);
   double assemble_elements(double h, double t_end_s);
   void update_active_tension(double t_end_s);
@@ -230,6 +246,13 @@ class Simulator {
   ThreadGovernor governor_;  // threads of each step when settings_.threads is 0
   Eigen::VectorXd x0_, v0_, vfree0_, vprev0_;  // state at the start of a step (rollback)
   std::vector<Eigen::Quaterniond> q0_;       // warm-start rotations at the start of a step (rollback)
+  // The circulation coupling: a unit follower pressure on each coupled cavity's wall, its
+  // forces (3N) and free-DOF right-hand side of a step, and work vectors of the pressures' Newton.
+  std::vector<SurfaceLoad> cavity_loads_;
+  std::vector<Eigen::VectorXd> cavity_force_, cavity_rhs_, cavity_shift_;
+  Eigen::VectorXd coupled_v_, coupled_x_;
+  std::vector<double> cavity_rest_volume_;   // m^3, per coupled cavity
+  circulation::State circulation0_;          // at the start of a step (rollback)
 };
 
 }  // namespace fiberfem::core

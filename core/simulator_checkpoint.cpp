@@ -34,6 +34,8 @@ void Simulator::restore(const SimulatorCheckpoint& c) {
     fail("active tension of the wrong size");
   if (model_.contraction.enabled() && c.active_tension_pa.empty()) fail("no active tension for a contracting model");
   if (!(std::isfinite(c.time_s) && c.step_count >= 0)) fail("bad time or step count");
+  if (c.cavity_response.size() != st_.cavity_response.size() || c.cavity_volume_m3.size() != st_.cavity_volume_m3.size())
+    fail("circulation state of another number of coupled cavities");
   solver_->load_state(c.solver, sys_.matrix());  // throws before anything else changes
   st_ = c;  // the state part (SimulatorState), whole
   assembled_ahead_ = false;  // not in the checkpoint: the next step makes its element pass

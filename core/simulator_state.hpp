@@ -1,6 +1,7 @@
 #pragma once
 /// @file The simulator's state between steps (what a checkpoint saves), plain data.
 
+#include "core/circulation/circulation.hpp"
 #include "core/linear_solver.hpp"
 #include "core/types.hpp"
 
@@ -32,6 +33,12 @@ struct SimulatorState {
   Eigen::VectorXd f_ext;             ///< External force of the current (sub)step, 3N, N.
   double energy_floor_j = 0;         ///< Round-off scale of the energy check, J.
   double contraction_origin_s = 0;   ///< Where beats are counted from (set_contraction), s.
+  circulation::State circulation;    ///< The lumped circulation's state (Model::circulation).
+  /// Free-DOF velocity response to unit pressure in each coupled cavity (warm starts), m/s/Pa.
+  std::vector<Eigen::VectorXd> cavity_response;
+  /// Volume of each coupled cavity after the last step, m^3.
+  std::vector<double> cavity_volume_m3;
+  int circulation_iterations = 0;    ///< Newton iterations on the pressures in the last step.
 };
 
 /// A SimulatorState with what a restore checks it against and the linear solver's memory:

@@ -61,7 +61,7 @@ double Simulator::assemble_elements(double h, double t_end_s) {
 // The element terms come from the element model, the mass terms are added here.
 bool Simulator::advance(double h, bool last_chance, StepReport& r, std::string& why) {
   assemble_step(h, r);
-  if (!solve_velocity(h, r, why)) return false;
+  if (model_.circulation.enabled() ? !solve_coupled(h, r, why) : !solve_velocity(h, r, why)) return false;
   if (!check_step(h, r.kinetic_energy_j, r.elastic_energy_j, last_chance, r, why)) return false;
   st_.time_s += h;
   return true;
@@ -73,7 +73,9 @@ void Simulator::assemble_step(double h, StepReport& r) {
   // forces, unless the checks of the last (sub)step already made this pass for this state
   // and step size (assembled_ahead_).
   auto t0 = Clock::now();
-  if (!varying_loads_.empty()) {  // ramped and follower loads at the end of the (sub)step
+  // Ramped and follower loads at the end of the (sub)step; the cavity pressures of a
+  // circulation (solve_coupled) are added to it afresh every step.
+  if (!varying_loads_.empty() || model_.circulation.enabled()) {
     st_.f_ext = f_ext_const_;
     for (const SurfaceLoad* s : varying_loads_) add_surface_load_at(model_.mesh.rest_positions(), positions(), *s, st_.time_s + h, st_.f_ext);
   }
@@ -107,6 +109,11 @@ void Simulator::assemble_step(double h, StepReport& r) {
 
 // The new velocity (and positions) from A and b; false with `why` when the solve fails.
 bool Simulator::solve_velocity(double h, StepReport& r, std::string& why) {
+  return solve_free(h, r, why) && take_velocity(h, why);
+}
+
+// st_.vfree from A and b (rhs_), warm-started; false with `why` when the solve fails.
+bool Simulator::solve_free(double h, StepReport& r, std::string& why) {
   auto t0 = Clock::now();
   // Phase 3: solve for the new velocity.
   // Initial guess: the last velocity extrapolated linearly (v_n + (v_n - st_.v{n-1})), which
@@ -146,6 +153,11 @@ bool Simulator::solve_velocity(double h, StepReport& r, std::string& why) {
     why = "linear solve residual " + std::to_string(st.relative_residual) + " above failure_residual";
     return false;
   }
+  return true;
+}
+
+// The velocity st_.vfree becomes the state's, and the positions move by h v.
+bool Simulator::take_velocity(double h, std::string& why) {
   sys_.scatter_free(st_.vfree, st_.v);
   st_.x += h * st_.v;
   st_.rotations_current = false;
@@ -231,6 +243,7 @@ StepReport Simulator::step() {
   const double last_h0 = st_.last_h_s;
   const bool keep_q = settings_.rotation == RotationMethod::polar;
   if (keep_q) q0_ = st_.q;
+  if (model_.circulation.enabled()) circulation0_ = st_.circulation;
   const double t_start = st_.time_s;
   std::string why;
   for (int level = 0; level <= settings_.max_substep_halvings; ++level) {
@@ -245,6 +258,7 @@ StepReport Simulator::step() {
       ok = advance(h, level == settings_.max_substep_halvings, sub, why);
       attempt.time = sub.time;
       attempt.solver_iterations += sub.solver_iterations;
+      attempt.circulation_iterations += sub.circulation_iterations;
       r.solver_factorizations += sub.solver_factorizations;
       attempt.solver_residual = std::max(attempt.solver_residual, sub.solver_residual);
       attempt.inverted_elements = sub.inverted_elements;
@@ -277,6 +291,7 @@ StepReport Simulator::step() {
     assembled_ahead_ = false;
     st_.last_h_s = last_h0;
     if (keep_q) st_.q = q0_;
+    if (model_.circulation.enabled()) st_.circulation = circulation0_;
     st_.time_s = t_start;
     r.attempts = level + 1;
     r.status = StepStatus::failed;

@@ -21,7 +21,8 @@ using detail::Fidelity;
 using detail::SceneFiles;
 
 const std::vector<std::string> kTopKeys = {"name",   "mesh",        "regions", "fibers",  "fixed",   "loads",
-                                           "solver", "probes",      "contraction", "measure", "archive", "fidelity"};
+                                           "solver", "probes",      "contraction", "measure", "archive", "fidelity",
+                                           "circulation"};
 
 // The mesh with each element's region, the regions' materials and damping.
 core::Model regions_model(const CheckedMap& top, SceneFiles& files, double refine, std::vector<std::string>& names,
@@ -146,6 +147,10 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ": " + e.what());
   }
   scene.cavities = detail::read_cavities(top, model.mesh);
+  if (top.has("circulation")) {
+    if (scene.accurate()) top.checks().fail(top["circulation"], "circulation", "runs on the corotated tier only (no material.law, mesh.order 1)");
+    detail::read_circulation(top, scene.cavities, model);
+  }
   if (top.has("archive")) scene.archive = detail::read_archive(checks, top["archive"]);
   text_and_hash(root, files, scene);
   scene.base_dir = base_dir;

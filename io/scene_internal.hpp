@@ -77,6 +77,9 @@ void read_loads(const CheckedMap& top, core::Model& model, std::optional<core::V
 std::vector<Probe> read_probes(const CheckedMap& top, const core::TetMesh& mesh);
 /// measure.cavities.
 std::vector<CavityMeasure> read_cavities(const CheckedMap& top, const core::TetMesh& mesh);
+/// circulation: the lumped loop coupled to the measured `cavities` it names (into
+/// model.circulation; needs model.fixed_dofs and model.contraction read).
+void read_circulation(const CheckedMap& top, const std::vector<CavityMeasure>& cavities, core::Model& model);
 /// archive.
 ArchiveSettings read_archive(const Checks& checks, const YAML::Node& node);
 

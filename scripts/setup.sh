@@ -89,7 +89,7 @@ else
 fi
 
 # Python packages (tests and tools) in a virtual environment beside the build.
-if ! .venv/bin/python -c "import meshio, gmsh, h5py, cyclonedds, fiberfem_client, dask, distributed, pandas, pyarrow, scipy, yaml, tqdm, fiberfem_client.sweep, aiohttp, selenium" 2>/dev/null; then
+if ! .venv/bin/python -c "import meshio, gmsh, h5py, cyclonedds, fiberfem_client, dask, distributed, pandas, pyarrow, scipy, yaml, tqdm, fiberfem_client.sweep, aiohttp, selenium, circulation.regazzoni2020" 2>/dev/null; then
   echo "setup: creating .venv with scripts/requirements.txt and the Python client (clients/python)"
   python3 -m venv .venv
   .venv/bin/pip install -q -r scripts/requirements.txt

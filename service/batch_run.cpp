@@ -4,6 +4,7 @@
 
 #include "service/batch_run.hpp"
 #include "service/batch_report.hpp"
+#include "service/batch_circulation.hpp"
 #include "service/batch_series.hpp"
 #include "service/stop_signals.hpp"
 
@@ -60,6 +61,7 @@ int run_static(const io::Scene& sc, json& report, std::ostream& out) {
   if (sc.model.contraction.enabled())
     out << "static: note: the static solve has no active stress; the contraction is left out (passive equilibrium)\n";
   if (!sc.cavities.empty()) out << "static: note: cavity volumes are reported by dynamic runs only\n";
+  if (sc.model.circulation.enabled()) out << "static: note: the circulation loads the cavities in dynamic runs only\n";
   const auto t0 = Clock::now();
   core::Positions x;
   const core::StaticReport r = static_equilibrium(sc, x);
@@ -124,6 +126,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
   const core::Energies e0 = run.simulator().energies();
   const StopSignals stop_signals;  // restored however the loop ends (a step can throw)
   detail::RunSeries series(sc, run.simulator());
+  detail::CirculationSeries circulation(sc, run.simulator());
   detail::StepTotals totals;
   totals.max_kinetic_j = e0.kinetic_j;
   detail::start_run(run, o, report, out);
@@ -147,6 +150,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
       }
       done = s;
       series.add(run.simulator(), run.cavity_volumes());
+      circulation.add(run.simulator());
       if (run.recorded_frames() != frames_before) detail::log_frame(run, o, out);
       totals.add(r);
       char line[512];
@@ -171,6 +175,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
   totals.report(sc, sim, e0, steps, done, wall, report);
   report["probes"] = detail::probes_json(sc, sim.positions());
   series.finish(sim, report, out);
+  circulation.finish(report, out);
   const int rc = status == "completed" ? 0 : 1;
   if (o.compare_static && rc == 0) compare_static(sc, sim, report, out);
   return rc;

@@ -29,15 +29,22 @@ DynamicSolver::DynamicSolver(const Problem& problem, const DynamicSettings& sett
 }
 
 DynamicStepReport DynamicSolver::step(const Loading& loading) {
+  // Predictor: the last velocity carried over the step (free components only move).
+  Positions x = predicted_positions();
+  Eigen::VectorXd p = p_;
+  DynamicStepReport rep = solve_step(loading, x, p);
+  if (rep.converged) accept_step(x, p);
+  return rep;
+}
+
+DynamicStepReport DynamicSolver::solve_step(const Loading& loading, Positions& x, Eigen::VectorXd& p) {
   const double h = settings_.dt_s;
-  const ResidualFn residual = [&](const Positions& x, const Eigen::VectorXd& p, Eigen::VectorXd& R, SparseMatrix* K) {
-    const Evaluation ev = assembler_.evaluate(x, p, loading, R, K);
-    assembler_.add_inertia(x, x_, v_, h, settings_.mass_damping_1_s, R, K);
+  const ResidualFn residual = [&](const Positions& xx, const Eigen::VectorXd& pp, Eigen::VectorXd& R, SparseMatrix* K) {
+    const Evaluation ev = assembler_.evaluate(xx, pp, loading, R, K);
+    assembler_.add_inertia(xx, x_, v_, h, settings_.mass_damping_1_s, R, K);
     return ev;
   };
-  // Predictor: the last velocity carried over the step (free components only move).
-  Positions x = x_ + h * v_;
-  Eigen::VectorXd p = p_, R;
+  Eigen::VectorXd R;
   Evaluation ev = residual(x, p, R, &K_);
   if (!ev.finite || ev.inverted_elements > 0) {
     x = x_;
@@ -51,18 +58,19 @@ DynamicStepReport DynamicSolver::step(const Loading& loading) {
   DynamicStepReport rep;
   rep.iterations = counters.iterations;
   rep.converged = converged;
-  if (!converged) {
+  if (!converged)
     rep.message = singular ? "the step's tangent is singular"
                            : "Newton did not converge in " + std::to_string(settings_.newton.max_iterations) +
                                  " iterations (a smaller solver.dt, or a softer load)";
-    return rep;
-  }
-  v_ = (x - x_) / h;
+  return rep;
+}
+
+void DynamicSolver::accept_step(const Positions& x, const Eigen::VectorXd& p) {
+  v_ = (x - x_) / settings_.dt_s;
   x_ = x;
   p_ = p;
-  t_s_ += h;
+  t_s_ += settings_.dt_s;
   ++steps_;
-  return rep;
 }
 
 DynamicState DynamicSolver::state() const { return {x_, v_, p_, t_s_, steps_, linear_.state()}; }

@@ -46,6 +46,16 @@ class DynamicSolver {
   /// One step to time t + dt with the loads at `loading` (their values at the step's end).
   /// A step that does not converge leaves the state unchanged and says why.
   DynamicStepReport step(const Loading& loading);
+  /// The same step without changing the state, from the guess `x` (3 x nodes; replaced by
+  /// the rest of the step's start when it is not finite or inverts an element) and `p`:
+  /// on convergence they hold the step's end. For iterations on the loads of a step (the
+  /// cavity pressures of a circulation, circulation_coupling.hpp).
+  DynamicStepReport solve_step(const Loading& loading, Positions& x, Eigen::VectorXd& p);
+  /// Makes a converged solve_step's end the state, one step later.
+  void accept_step(const Positions& x, const Eigen::VectorXd& p);
+  /// The predictor of the next step: the last velocity carried over it.
+  Positions predicted_positions() const { return x_ + settings_.dt_s * v_; }
+  double dt_s() const { return settings_.dt_s; }
 
   double time_s() const { return t_s_; }
   long steps() const { return steps_; }

@@ -29,4 +29,13 @@ SolveStats DirectSolver::solve(const SparseMatrix& A, const Eigen::VectorXd& b, 
   return st;
 }
 
+SolveStats DirectSolver::solve_same_matrix(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  SolveStats st;
+  st.iterations = 1;
+  x = factor_.solve(b);
+  st.relative_residual = relative_residual(A, b, x);
+  st.ok = x.allFinite() && std::isfinite(st.relative_residual);
+  return st;
+}
+
 }  // namespace fiberfem::core::detail

@@ -10,6 +10,7 @@ namespace fiberfem::core::detail {
 class DirectSolver final : public LinearSolver {
  public:
   SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
+  SolveStats solve_same_matrix(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
   std::string name() const override { return direct_solver_uses_cholmod() ? "cholmod" : "llt"; }
   FactorInfo factor_info() const override {
     FactorInfo i = factor_.info();

@@ -38,6 +38,27 @@ SolveStats PcgSolver::solve(const SparseMatrix& A, const Eigen::VectorXd& b_in, 
   return st;
 }
 
+SolveStats PcgSolver::solve_same_matrix(const SparseMatrix& A, const Eigen::VectorXd& b_in, Eigen::VectorXd& x) {
+  if (!s_.warm_start || s_.recycled_solutions == 0) return solve(A, b_in, x);
+  if (x.size() != b_in.size()) x = Eigen::VectorXd::Zero(b_in.size());
+  const double bn = b_in.norm();
+  if (bn == 0.0 || !std::isfinite(bn)) {
+    if (bn == 0.0) x.setZero();
+    SolveStats st;
+    st.ok = bn == 0.0;
+    return st;
+  }
+  scaled_b_ = b_in / bn;
+  use_blocks_ = system_ && system_->blocks_current() && &A == &system_->matrix() &&
+                s_.preconditioner == PreconditionerKind::cholesky && s_.recycled_solutions == 8;
+  if (system_ && system_->blocks_current() && !use_blocks_) system_->sync_matrix();
+  pcg_.blocks_ = use_blocks_ ? system_ : nullptr;
+  x /= bn;
+  SolveStats st = solve_scaled(A, scaled_b_, x, nullptr);
+  x *= bn;
+  return st;
+}
+
 template <class Preconditioner>
 SolveStats PcgSolver::run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                           const Eigen::VectorXd* Ax0) {

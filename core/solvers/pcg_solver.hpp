@@ -18,6 +18,9 @@ class PcgSolver final : public LinearSolver {
     warp_pre_.set_state(&lagged_.warp());
   }
   SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
+  /// Starts from `x` itself (no projection on the recycled solutions, which belong to
+  /// another right-hand side, and none remembered).
+  SolveStats solve_same_matrix(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
   std::string name() const override { return std::string("pcg/") + to_string(s_.preconditioner); }
   FactorInfo factor_info() const override { return lagged_.info(); }
   int threads_beside() const override { return lagged_.threads_beside(); }

@@ -204,6 +204,29 @@ TEST(ShippedScenes, HeartBeatsWithPhysiologicalEjectionFractions) {
   }
 }
 
+// The default heart with the closed-loop circulation (configs/scenes/heart-circulation-
+// realtime.yaml, docs/circulation.md) over five beats: blood is conserved to round-off, the
+// loop settles (the last beat's LV stroke volume within 1% of the one before) and closes
+// (the two ventricles' stroke volumes within 2%), and the LV ejects a physiological
+// fraction against the scaled aortic pressure (peak LV above the aortic diastolic).
+TEST(ShippedScenes, HeartWithCirculationSettlesIntoAClosedLoop) {
+  const json r = run_scene("heart-circulation-realtime.yaml", {"--until", "4.1667", "--set", "solver.threads=1"});
+  const json& c = r["circulation"];
+  EXPECT_LT(c["max_blood_volume_drift_m3"].get<double>(), 1e-12 * c["blood_volume_m3"].get<double>());
+  const json& beats = c["beats"];
+  ASSERT_GE(beats.size(), 5u);
+  const json &last = beats[4], &before = beats[3];
+  ASSERT_TRUE(last["complete"].get<bool>());
+  const double sv = last["lv"]["stroke_volume_m3"].get<double>(), sv_rv = last["rv"]["stroke_volume_m3"].get<double>();
+  EXPECT_LT(std::abs(sv - before["lv"]["stroke_volume_m3"].get<double>()), 0.01 * sv);
+  EXPECT_LT(std::abs(sv - sv_rv), 0.02 * sv);
+  const double ef = last["lv"]["ejection_fraction"].get<double>();
+  EXPECT_GT(ef, 0.3);
+  EXPECT_LT(ef, 0.7);
+  EXPECT_GT(last["lv"]["peak_pressure_pa"].get<double>(), last["systemic_arterial_min_pa"].get<double>());
+  EXPECT_GT(last["systemic_arterial_max_pa"].get<double>(), 1.3 * last["systemic_arterial_min_pa"].get<double>());
+}
+
 // The paper's palm tree (Figs. 1 to 3) in four variants (configs/scenes/palm-*.yaml on
 // meshes/palm.msh). The paper's qualitative findings, each a comparison that can fail:
 // the stiffer trunk of the heterogeneous tree sways and sags less than the soft isotropic

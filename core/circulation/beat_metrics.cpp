@@ -1,0 +1,50 @@
+#include "core/circulation/beat_metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fiberfem::core::circulation {
+
+int BeatRecorder::beat_of(double t) const {
+  // A sample at the end of a step that ends a beat (t = k T up to round-off) belongs to it.
+  return static_cast<int>(std::ceil((t - origin_s_) / period_s_ - 1e-9)) - 1;
+}
+
+void BeatRecorder::add(const Sample& s) {
+  const int b = std::max(0, beat_of(s.time_s));
+  if (b != current_index_ && !current_.empty()) close();
+  current_index_ = b;
+  current_.push_back(s);
+}
+
+void BeatRecorder::finish() {
+  if (!current_.empty()) close();
+}
+
+void BeatRecorder::close() {
+  Beat beat;
+  beat.index = current_index_;
+  beat.start_s = origin_s_ + current_index_ * period_s_;
+  beat.samples = static_cast<int>(current_.size());
+  for (int k = 0; k < 2; ++k) {
+    VentricleBeat& v = beat.ventricle[k];
+    const auto by_volume = [k](const Sample& a, const Sample& b) { return a.volume_m3[k] < b.volume_m3[k]; };
+    const auto [lo, hi] = std::minmax_element(current_.begin(), current_.end(), by_volume);
+    v.end_diastolic_m3 = hi->volume_m3[k];
+    v.end_systolic_m3 = lo->volume_m3[k];
+    v.stroke_m3 = v.end_diastolic_m3 - v.end_systolic_m3;
+    v.ejection_fraction = v.end_diastolic_m3 > 0 ? v.stroke_m3 / v.end_diastolic_m3 : 0;
+    v.end_diastolic_pa = hi->pressure_pa[k];
+    v.peak_pa = std::max_element(current_.begin(), current_.end(), [k](const Sample& a, const Sample& b) {
+                  return a.pressure_pa[k] < b.pressure_pa[k];
+                })->pressure_pa[k];
+    const auto by_arterial = [k](const Sample& a, const Sample& b) { return a.arterial_pa[k] < b.arterial_pa[k]; };
+    const auto [alo, ahi] = std::minmax_element(current_.begin(), current_.end(), by_arterial);
+    beat.arterial_max_pa[k] = ahi->arterial_pa[k];
+    beat.arterial_min_pa[k] = alo->arterial_pa[k];
+  }
+  beats_.push_back(beat);
+  current_.clear();
+}
+
+}  // namespace fiberfem::core::circulation
