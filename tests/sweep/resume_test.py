@@ -7,6 +7,7 @@ after its first rows are recorded; the second call must record only the others, 
 scene hash and binary version, and end with every configuration in its table."""
 
 import os
+import signal
 import sys
 
 from sweep_support import (HERE, TINY, Tally, cleanup, kill_group, recorded_rows, run_sweep, scratch, start_sweep,
@@ -21,6 +22,10 @@ def main():
     try:
         p = start_sweep(SLOW, out, "--workers", "1")
         t.check(bool(wait_for(lambda: len(recorded_rows(out)) >= 2, 180)), "two rows recorded before the kill")
+        # Stopped (SIGSTOP), the sweep still holds its directory but finishes no more rows:
+        # on a busy machine the second sweep below takes longer to start than the rest of
+        # the first one takes to run.
+        os.killpg(p.pid, signal.SIGSTOP)
         busy = run_sweep(SLOW, out, "--workers", "1")
         t.check(busy.returncode == 3 and "in use by another sweep" in busy.stderr,
                 f"a second sweep into a directory in use is refused: {busy.returncode} {busy.stderr[-500:]}")
