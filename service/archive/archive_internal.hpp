@@ -3,6 +3,7 @@
 /// checkpoint blobs and sections, small HDF5 helpers, and the sidecar and codec entry
 /// points. Internal to fiberfem::archive.
 
+#include "core/circulation/circulation.hpp"
 #include "service/archive/archive.hpp"
 #include "service/archive/hdf5.hpp"
 
@@ -95,6 +96,29 @@ inline std::vector<core::Mat3> matrices_of(const Section& s) {
   std::vector<core::Mat3> m(s.n / 9);
   for (size_t i = 0; i < m.size(); ++i) m[i] = Eigen::Map<const core::Mat3>(s.p + 9 * i);
   return m;
+}
+
+// The lumped circulation's state as one section of 15 numbers: time, the 4 chamber
+// volumes, the 4 compartment pressures, the 4 flows, the 2 external (ventricle) pressures.
+inline constexpr size_t kCirculationStateNumbers = 15;
+inline std::vector<double> circulation_numbers(const core::circulation::State& s) {
+  std::vector<double> v{s.time_s};
+  v.insert(v.end(), s.volume_m3.begin(), s.volume_m3.end());
+  v.insert(v.end(), s.pressure_pa.begin(), s.pressure_pa.end());
+  v.insert(v.end(), s.flow_m3_s.begin(), s.flow_m3_s.end());
+  v.insert(v.end(), s.external_pa.begin(), s.external_pa.end());
+  return v;
+}
+inline core::circulation::State circulation_state_of(const Section& sec) {
+  if (sec.n != kCirculationStateNumbers) throw std::runtime_error("archive: checkpoint section 'circulation.state' has the wrong size");
+  core::circulation::State s;
+  const double* p = sec.p;
+  s.time_s = *p++;
+  for (double& x : s.volume_m3) x = *p++;
+  for (double& x : s.pressure_pa) x = *p++;
+  for (double& x : s.flow_m3_s) x = *p++;
+  for (double& x : s.external_pa) x = *p++;
+  return s;
 }
 
 inline std::string join_json(const std::vector<std::string>& names) { return json(names).dump(); }

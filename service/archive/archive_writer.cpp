@@ -397,6 +397,16 @@ json real_time_checkpoint(const core::SimulatorCheckpoint& c, Blob& b) {
   add_matrices(b, "block_R", c.block_R);
   b.add("active_tension_pa", c.active_tension_pa.data(), c.active_tension_pa.size());
   b.add("f_ext", c.f_ext.data(), static_cast<size_t>(c.f_ext.size()));
+  // A run with a circulation: the loop's state, each coupled cavity's volume and the warm
+  // starts of its unit-pressure response.
+  if (!c.cavity_volume_m3.empty()) {
+    const std::vector<double> loop = circulation_numbers(c.circulation);
+    b.add("circulation.state", loop.data(), loop.size());
+    b.add("circulation.cavity_volume_m3", c.cavity_volume_m3.data(), c.cavity_volume_m3.size());
+    for (size_t k = 0; k < c.cavity_response.size(); ++k)
+      b.add("circulation.cavity_response" + std::to_string(k), c.cavity_response[k].data(),
+            static_cast<size_t>(c.cavity_response[k].size()));
+  }
   b.add("solver.history", c.solver.history.data(), static_cast<size_t>(c.solver.history.size()));
   json factors = json::array();
   for (size_t k = 0; k < c.solver.factors.size(); ++k) {
@@ -420,6 +430,8 @@ json real_time_checkpoint(const core::SimulatorCheckpoint& c, Blob& b) {
           {"inverted_current", c.inverted_current},
           {"energy_floor_j", c.energy_floor_j},
           {"contraction_origin_s", c.contraction_origin_s},
+          {"circulation_cavities", c.cavity_volume_m3.size()},
+          {"circulation_iterations", c.circulation_iterations},
           {"solver",
            {{"name", c.solver.solver_name},
             {"history_rows", c.solver.history_rows},

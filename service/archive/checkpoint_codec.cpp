@@ -81,6 +81,18 @@ core::SimulatorCheckpoint real_time_checkpoint_of(const json& h, const std::vect
   const Section a = section(h, data, "active_tension_pa");
   c.active_tension_pa.assign(a.p, a.p + a.n);
   c.f_ext = vector_of(section(h, data, "f_ext"));
+  // A run with a circulation (absent in checkpoints without one, and in those written
+  // before 2026-11-26).
+  const size_t cavities = h.value("circulation_cavities", size_t{0});
+  if (cavities > 0) {
+    c.circulation = circulation_state_of(section(h, data, "circulation.state"));
+    const Section v = section(h, data, "circulation.cavity_volume_m3");
+    if (v.n != cavities) throw std::runtime_error("archive: checkpoint section 'circulation.cavity_volume_m3' has the wrong size");
+    c.cavity_volume_m3.assign(v.p, v.p + v.n);
+    for (size_t k = 0; k < cavities; ++k)
+      c.cavity_response.push_back(vector_of(section(h, data, "circulation.cavity_response" + std::to_string(k))));
+    c.circulation_iterations = h.value("circulation_iterations", 0);
+  }
   const json& s = h.at("solver");
   c.solver.solver_name = s.at("name");
   c.solver.history_rows = s.at("history_rows");

@@ -190,6 +190,33 @@ TEST_F(ArchiveCli, SwmrReaderFollowsALiveRun) {
   EXPECT_NE(info.output.find("frames: 151"), std::string::npos) << info.output;
 }
 
+// A run with the closed-loop circulation resumes bit for bit too: the checkpoint carries
+// the loop's state, the coupled cavities' volumes and their pressure responses.
+TEST_F(ArchiveCli, ACirculationRunResumesBitForBit) {
+  TempDir dir;
+  const std::string a = dir.file("a.h5"), b = dir.file("b.h5");
+  const std::string scene = std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/heart-circulation-realtime.yaml";
+  auto run = run_process({kBin, "run", scene, "--steps", "40", "--archive", a, "--checkpoint-every", "0.3"});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  run = run_process({kBin, "run", "--resume", a + "@0.4", "--archive", b, "--steps", "40"});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const archive::ArchiveReader ra(a), rb(b);
+  ASSERT_EQ(rb.steps().front(), 18);
+  for (long i = 0; i < rb.frames(); ++i) {
+    const archive::Frame fb = rb.frame(i), fa = ra.frame(fb.step);
+    EXPECT_TRUE(fb.positions == fa.positions) << "step " << fb.step;
+  }
+  const core::SimulatorCheckpoint ca = ra.read_checkpoint(ra.checkpoints().size() - 1);
+  const core::SimulatorCheckpoint cb = rb.read_checkpoint(rb.checkpoints().size() - 1);
+  ASSERT_EQ(ca.step_count, 40);
+  ASSERT_EQ(cb.step_count, 40);
+  ASSERT_EQ(cb.cavity_volume_m3.size(), 2u);  // both ventricles coupled
+  EXPECT_TRUE(ca.x == cb.x);
+  EXPECT_TRUE(ca.circulation.volume_m3 == cb.circulation.volume_m3);
+  EXPECT_TRUE(ca.circulation.pressure_pa == cb.circulation.pressure_pa);
+  EXPECT_TRUE(ca.cavity_volume_m3 == cb.cavity_volume_m3);
+}
+
 TEST_F(ArchiveCli, ResumeContinuesBitForBit) {
   TempDir dir;
   const std::string a = dir.file("a.h5"), b = dir.file("b.h5");
