@@ -3,6 +3,7 @@
 // in the same report sections as the real-time tier's static solve.
 
 #include "service/batch_report.hpp"
+#include "service/batch_series.hpp"
 
 #include "core/hyperelastic/dynamic.hpp"
 #include "io/scene_accurate.hpp"
@@ -94,6 +95,7 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
                 mesh.num_nodes(), engine.totals().equations, engine.dt_s(), steps);
   out << line;
   const StopSignals stop_signals;  // an interrupted run still writes its report
+  RunSeries series(sc, run.engine());  // cavity volumes and probes per beat, from the rest state
   start_run(run, o, report, out);
   std::string reason;
   int done = static_cast<int>(engine.step_count()), most_iterations = 0;
@@ -105,6 +107,7 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
       break;
     }
     done = s;
+    series.add(run.engine(), run.cavity_volumes());
     if (run.recorded_frames() != frames_before) log_frame(run, o, out);
     most_iterations = std::max(most_iterations, r.solver_iterations);
     if (steps >= 5 && s % (steps / 5) != 0 && s != steps) continue;
@@ -138,7 +141,9 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
                        {"factorisations", totals.factorisations},
                        {"krylov_iterations", totals.krylov_iterations}};
   report["timing"] = {{"wall_s", wall}, {"assembly_s", totals.assembly_s}, {"linear_solve_s", totals.factor_s}};
+  report["steps"] = {{"requested", steps}, {"completed", done}, {"dt_s", engine.dt_s()}, {"simulated_time_s", engine.time_s()}};
   report["probes"] = probes;
+  series.finish(run.engine(), report, out);
   return completed ? 0 : 1;
 }
 

@@ -125,7 +125,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
   RunDriver run(sc, Parameters::fixed);
   const core::Energies e0 = run.simulator().energies();
   const StopSignals stop_signals;  // restored however the loop ends (a step can throw)
-  detail::RunSeries series(sc, run.simulator());
+  detail::RunSeries series(sc, run.engine());
   detail::CirculationSeries circulation(sc, run.simulator());
   detail::StepTotals totals;
   totals.max_kinetic_j = e0.kinetic_j;
@@ -149,7 +149,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
         break;
       }
       done = s;
-      series.add(run.simulator(), run.cavity_volumes());
+      series.add(run.engine(), run.cavity_volumes());
       circulation.add(run.simulator());
       if (run.recorded_frames() != frames_before) detail::log_frame(run, o, out);
       totals.add(r);
@@ -174,7 +174,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
   report["reason"] = reason;
   totals.report(sc, sim, e0, steps, done, wall, report);
   report["probes"] = detail::probes_json(sc, sim.positions());
-  series.finish(sim, report, out);
+  series.finish(run.engine(), report, out);
   circulation.finish(report, out);
   const int rc = status == "completed" ? 0 : 1;
   if (o.compare_static && rc == 0) compare_static(sc, sim, report, out);

@@ -75,14 +75,15 @@ void BeatSeries::add(double v) {
   beat_.add(v);
 }
 
-RunSeries::RunSeries(const io::Scene& sc, const core::Simulator& sim)
+RunSeries::RunSeries(const io::Scene& sc, const Engine& engine)
     : sc_(sc),
       beat_period_s_(sc.model.contraction.enabled() ? sc.model.contraction.period_s : HUGE_VAL),
       dt_s_(sc.settings.dt_s),
       total_volume_m3_(sc.model.mesh.total_volume()),
-      contracting_(sc.model.contraction.enabled()) {
+      contracting_(sc.model.contraction.enabled()),
+      fiber_stretch_(contracting_ && engine.real_time() != nullptr) {
   for (const io::CavityMeasure& c : sc.cavities) {
-    rest_volume_m3_.push_back(core::cavity_volume(c.surface, sim.positions()));
+    rest_volume_m3_.push_back(core::cavity_volume(c.surface, engine.positions()));
     volumes_.emplace_back(rest_volume_m3_.back());
   }
   for (size_t k = 0; k < sc.probes.size(); ++k) probe_u_.emplace_back(0.0);
@@ -93,14 +94,15 @@ long RunSeries::beat_of(double t) const {
   return beat_period_s_ < HUGE_VAL ? static_cast<long>(std::floor((t - 0.5 * dt_s_) / beat_period_s_)) : 0L;
 }
 
-void RunSeries::add(const core::Simulator& sim, const CavityVolumes& volumes) {
-  const long beat = beat_of(sim.time_s());
+void RunSeries::add(const Engine& engine, const CavityVolumes& volumes) {
+  const long beat = beat_of(engine.time_s());
   if (beat != current_beat_) {
-    close_beat(current_beat_, sim.time_s());
+    close_beat(current_beat_, engine.time_s());
     current_beat_ = beat;
   }
-  for (size_t k = 0; k < sc_.probes.size(); ++k) probe_u_[k].add(sc_.probes[k].displacement(sc_.model.mesh, sim.positions()).norm());
-  if (contracting_) stretch_.add(mean_fiber_stretch(sim));
+  const core::Positions x = engine.positions();
+  for (size_t k = 0; k < sc_.probes.size(); ++k) probe_u_[k].add(sc_.probes[k].displacement(sc_.model.mesh, x).norm());
+  if (fiber_stretch_) stretch_.add(mean_fiber_stretch(*engine.real_time()));
   for (size_t k = 0; k < volumes_.size(); ++k) volumes_[k].add(volumes[k].second);
   ++steps_in_beat_;
 }
@@ -115,7 +117,7 @@ void RunSeries::close_beat(long beat, double now_s) {
     });
   for (BeatSeries& u : probe_u_)
     u.close(beat, complete, [](const BeatSeries::Range& r, json& e) { e["max_displacement_norm_m"] = r.max; });
-  if (contracting_)
+  if (fiber_stretch_)
     stretch_.close(beat, complete, [](const BeatSeries::Range& r, json& e) { e["peak_fiber_shortening"] = 1.0 - r.min; });
   steps_in_beat_ = 0;
 }
@@ -133,14 +135,14 @@ double RunSeries::mean_fiber_stretch(const core::Simulator& sim) const {
   return sum / total_volume_m3_;
 }
 
-void RunSeries::finish(const core::Simulator& sim, json& report, std::ostream& out) {
+void RunSeries::finish(const Engine& engine, json& report, std::ostream& out) {
   char line[512];
-  if (steps_in_beat_ > 0) close_beat(current_beat_, sim.time_s());  // the last beat, if a step fell in it
+  if (steps_in_beat_ > 0) close_beat(current_beat_, engine.time_s());  // the last beat, if a step fell in it
   for (size_t k = 0; k < sc_.probes.size(); ++k) {
     report["probes"][k]["max_displacement_norm_m"] = probe_u_[k].run().max;
     report["probes"][k]["beats"] = probe_u_[k].beats();
   }
-  if (contracting_) {
+  if (fiber_stretch_) {
     report["contraction"] = {{"mode", core::to_string(sc_.model.contraction.mode)},
                              {"period_s", sc_.model.contraction.period_s},
                              {"peak_fiber_shortening", 1.0 - stretch_.run().min},

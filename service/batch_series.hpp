@@ -66,13 +66,15 @@ class BeatSeries {
 /// without one).
 class RunSeries {
  public:
-  /// From the rest state of `sim` (before any resume).
-  RunSeries(const io::Scene& sc, const core::Simulator& sim);
+  /// From the rest state of `engine` (before any resume). On the accurate tier the
+  /// probes and cavities are read on the corner nodes, and the fiber shortening is not
+  /// recorded.
+  RunSeries(const io::Scene& sc, const Engine& engine);
   /// After each accepted step, with the state's cavity volumes.
-  void add(const core::Simulator& sim, const CavityVolumes& volumes);
+  void add(const Engine& engine, const CavityVolumes& volumes);
   /// Closes the last beat; adds the probes' series, "contraction" and "cavities" to the
   /// report and prints their summaries.
-  void finish(const core::Simulator& sim, json& report, std::ostream& out);
+  void finish(const Engine& engine, json& report, std::ostream& out);
 
  private:
   long beat_of(double t) const;
@@ -82,6 +84,7 @@ class RunSeries {
   const io::Scene& sc_;
   double beat_period_s_, dt_s_, total_volume_m3_;
   bool contracting_;
+  bool fiber_stretch_;  ///< The mean fiber shortening is recorded (the real-time tier's contracting runs).
   std::vector<BeatSeries> volumes_, probe_u_;
   std::vector<double> rest_volume_m3_;
   BeatSeries stretch_{1.0};
