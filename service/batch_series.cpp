@@ -100,8 +100,10 @@ void RunSeries::add(const Engine& engine, const CavityVolumes& volumes) {
     close_beat(current_beat_, engine.time_s());
     current_beat_ = beat;
   }
-  const core::Positions x = engine.positions();
-  for (size_t k = 0; k < sc_.probes.size(); ++k) probe_u_[k].add(sc_.probes[k].displacement(sc_.model.mesh, x).norm());
+  if (!sc_.probes.empty()) {  // Probe::displacement takes Positions: one copy of the state, only for probes
+    const core::Positions x = engine.positions();
+    for (size_t k = 0; k < sc_.probes.size(); ++k) probe_u_[k].add(sc_.probes[k].displacement(sc_.model.mesh, x).norm());
+  }
   if (fiber_stretch_) stretch_.add(mean_fiber_stretch(*engine.real_time()));
   for (size_t k = 0; k < volumes_.size(); ++k) volumes_[k].add(volumes[k].second);
   ++steps_in_beat_;
