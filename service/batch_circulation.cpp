@@ -19,9 +19,9 @@ json ventricle_json(const cc::VentricleBeat& v) {
 
 }  // namespace
 
-CirculationSeries::CirculationSeries(const io::Scene& sc, const core::Simulator& sim)
+CirculationSeries::CirculationSeries(const io::Scene& sc, const Engine& engine)
     : enabled_(sc.model.circulation.enabled()), sc_(sc), beats_(sc.model.circulation.parameters.period_s, 0.0) {
-  if (enabled_) initial_blood_m3_ = cc::total_volume(sim.model().circulation.parameters, sim.circulation_state());
+  if (enabled_) initial_blood_m3_ = cc::total_volume(engine.model().circulation.parameters, *engine.circulation_state());
 }
 
 void CirculationSeries::push(const std::string& column, double value) {
@@ -30,16 +30,16 @@ void CirculationSeries::push(const std::string& column, double value) {
   it->second.push_back(value);
 }
 
-void CirculationSeries::add(const core::Simulator& sim) {
+void CirculationSeries::add(const Engine& engine) {
   if (!enabled_) return;
-  const cc::Parameters& p = sim.model().circulation.parameters;
-  const cc::State& s = sim.circulation_state();
+  const cc::Parameters& p = engine.model().circulation.parameters;
+  const cc::State& s = *engine.circulation_state();
   const cc::Observables o = cc::observe(p, s);
   // The coupled ventricles' volumes are the mesh's (equal to the loop's to the coupling's
   // tolerance); the other chambers' are the loop's.
   double volume[4] = {s.volume_m3[0], s.volume_m3[1], s.volume_m3[2], s.volume_m3[3]};
-  const auto& cavities = sim.model().circulation.cavities;
-  for (size_t k = 0; k < cavities.size(); ++k) volume[cavities[k].chamber] = sim.coupled_cavity_volumes()[k];
+  const auto& cavities = engine.model().circulation.cavities;
+  for (size_t k = 0; k < cavities.size(); ++k) volume[cavities[k].chamber] = engine.coupled_cavity_volumes()[k];
   static const char* const chambers[4] = {"la", "lv", "ra", "rv"};  // by ChamberId
   static const char* const compartments[4] = {"systemic_arterial", "systemic_venous", "pulmonary_arterial",
                                               "pulmonary_venous"};  // by CompartmentId
@@ -52,9 +52,9 @@ void CirculationSeries::add(const core::Simulator& sim) {
     push(std::string(compartments[i]) + "_flow_m3_s", s.flow_m3_s[static_cast<size_t>(i)]);
     push(std::string(valves[i]) + "_flow_m3_s", o.valve_m3_s[static_cast<size_t>(i)]);
   }
-  push("pressure_iterations", s.time_s > 0 ? sim.circulation_iterations() : 0);
-  iterations_ += sim.circulation_iterations();
-  max_iterations_ = std::max(max_iterations_, sim.circulation_iterations());
+  push("pressure_iterations", s.time_s > 0 ? engine.circulation_iterations() : 0);
+  iterations_ += engine.circulation_iterations();
+  max_iterations_ = std::max(max_iterations_, engine.circulation_iterations());
   max_drift_m3_ = std::max(max_drift_m3_, std::abs(cc::total_volume(p, s) - initial_blood_m3_));
   cc::Sample sample;
   sample.time_s = s.time_s;

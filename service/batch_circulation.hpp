@@ -4,7 +4,7 @@
 /// (EDV, ESV, stroke volume, EF, peak and end-diastolic pressures, arterial pressures).
 
 #include "core/circulation/beat_metrics.hpp"
-#include "core/simulator.hpp"
+#include "service/engine.hpp"
 #include "io/scene.hpp"
 
 #include <nlohmann/json.hpp>
@@ -19,9 +19,9 @@ namespace fiberfem::service::detail {
 class CirculationSeries {
  public:
   /// Off (every call a no-op) unless the scene has a `circulation` key.
-  CirculationSeries(const io::Scene& sc, const core::Simulator& sim);
+  CirculationSeries(const io::Scene& sc, const Engine& engine);
   /// After each accepted step.
-  void add(const core::Simulator& sim);
+  void add(const Engine& engine);
   /// Adds "circulation" to the report and prints a line per beat.
   void finish(nlohmann::ordered_json& report, std::ostream& out);
 

@@ -126,7 +126,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
   const core::Energies e0 = run.simulator().energies();
   const StopSignals stop_signals;  // restored however the loop ends (a step can throw)
   detail::RunSeries series(sc, run.engine());
-  detail::CirculationSeries circulation(sc, run.simulator());
+  detail::CirculationSeries circulation(sc, run.engine());
   detail::StepTotals totals;
   totals.max_kinetic_j = e0.kinetic_j;
   detail::start_run(run, o, report, out);
@@ -150,7 +150,7 @@ int run_dynamic(const io::Scene& sc, const BatchOptions& o, json& report, std::o
       }
       done = s;
       series.add(run.engine(), run.cavity_volumes());
-      circulation.add(run.simulator());
+      circulation.add(run.engine());
       if (run.recorded_frames() != frames_before) detail::log_frame(run, o, out);
       totals.add(r);
       char line[512];

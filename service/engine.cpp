@@ -8,6 +8,11 @@
 
 namespace fiberfem::service {
 
+const std::vector<double>& Engine::coupled_cavity_volumes() const {
+  static const std::vector<double> none;
+  return none;
+}
+
 RealTimeEngine::RealTimeEngine(const io::Scene& scene)
     : owned_(std::make_unique<core::Simulator>(scene.model, scene.settings)), sim_(*owned_) {}
 

@@ -52,6 +52,15 @@ class Engine {
   /// Back to rest, time zero.
   virtual void reset() = 0;
 
+  /// The lumped circulation after the last step (scene key `circulation`), or nullptr when
+  /// the scene has none. Its parameters are model().circulation.parameters.
+  virtual const core::circulation::State* circulation_state() const { return nullptr; }
+  /// Volume of each coupled cavity (model().circulation.cavities order) after the last
+  /// step, m^3; empty without a circulation.
+  virtual const std::vector<double>& coupled_cavity_volumes() const;
+  /// Newton iterations on the cavity pressures in the last step; 0 without a circulation.
+  virtual int circulation_iterations() const { return 0; }
+
   /// The real-time simulator, or nullptr on the accurate tier.
   virtual core::Simulator* real_time() { return nullptr; }
   const core::Simulator* real_time() const { return const_cast<Engine*>(this)->real_time(); }
@@ -79,6 +88,11 @@ class RealTimeEngine final : public Engine {
   EngineCheckpoint checkpoint() const override { return sim_.checkpoint(); }
   void restore(const EngineCheckpoint& c) override;
   void reset() override { sim_.reset(); }
+  const core::circulation::State* circulation_state() const override {
+    return sim_.model().circulation.enabled() ? &sim_.circulation_state() : nullptr;
+  }
+  const std::vector<double>& coupled_cavity_volumes() const override { return sim_.coupled_cavity_volumes(); }
+  int circulation_iterations() const override { return sim_.circulation_iterations(); }
   core::Simulator* real_time() override { return &sim_; }
 
  private:
