@@ -57,6 +57,9 @@ class AccurateEngine final : public Engine {
     return {x.data(), 3, problem_.mesh->num_corner_nodes()};
   }
   void update_tension();
+  core::StepReport attempt(int substeps);
+  void restore_state(const EngineCheckpoint& c);  // restore() without touching the tension
+  static constexpr int kMaxSubsteps = 8;
   // A solver (and its coupling to the circulation, when the scene has one) at rest.
   void start(const core::hyperelastic::DynamicSettings& settings);
 
