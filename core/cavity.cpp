@@ -48,6 +48,32 @@ double cavity_volume(const CavitySurface& s, const Eigen::Ref<const Positions>& 
   return six_v / 6.0;
 }
 
+Positions cavity_volume_gradient(const CavitySurface& s, const Eigen::Ref<const Positions>& x) {
+  // The closed surface's volume does not depend on the origin: take it near the surface.
+  Positions g = Positions::Zero(3, x.cols());
+  const Vec3 o = x.col(s.faces.front()[0]);
+  for (const Tri& t : s.faces) {  // six V -= a . (b x c)
+    const Vec3 a = x.col(t[0]) - o, b = x.col(t[1]) - o, c = x.col(t[2]) - o;
+    g.col(t[0]) -= b.cross(c) / 6.0;
+    g.col(t[1]) -= c.cross(a) / 6.0;
+    g.col(t[2]) -= a.cross(b) / 6.0;
+  }
+  if (!s.rim_nodes.empty()) {  // six V += centre . (u x v), the centre the rim's mean
+    Vec3 centre = Vec3::Zero();
+    for (int n : s.rim_nodes) centre += x.col(n);
+    centre = centre / static_cast<double>(s.rim_nodes.size()) - o;
+    Vec3 d_centre = Vec3::Zero();
+    for (const auto& [u, v] : s.rim_edges) {
+      const Vec3 a = x.col(u) - o, b = x.col(v) - o;
+      d_centre += a.cross(b) / 6.0;
+      g.col(u) += b.cross(centre) / 6.0;
+      g.col(v) += centre.cross(a) / 6.0;
+    }
+    for (int n : s.rim_nodes) g.col(n) += d_centre / static_cast<double>(s.rim_nodes.size());
+  }
+  return g;
+}
+
 int open_rim_nodes(const CavitySurface& surface, const std::vector<std::uint8_t>& fixed_dofs) {
   int open = 0;
   for (int n : surface.rim_nodes)

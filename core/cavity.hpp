@@ -25,6 +25,8 @@ CavitySurface cavity_surface(const TetMesh& mesh, const std::vector<int>& surfac
 /// triangles, m^3. Positive for a cavity; exact for the polyhedron, invariant under rigid
 /// motions. A surface without a rim is closed already.
 double cavity_volume(const CavitySurface& surface, const Eigen::Ref<const Positions>& x);
+/// d cavity_volume / d x (3 x N, zero off the surface and its rim), m^2.
+Positions cavity_volume_gradient(const CavitySurface& surface, const Eigen::Ref<const Positions>& x);
 
 /// Rim nodes of `surface` with a component not fixed in `fixed_dofs` (3 per node; empty:
 /// nothing fixed). A cavity loaded by a pressure is closed when this is 0: the lid across

@@ -392,6 +392,24 @@ void Assembler::add_inertia(const Positions& x, const Positions& x0, const Posit
   }
 }
 
+Eigen::VectorXd Assembler::unit_pressure_residual(const Positions& x, int k) const {
+  Loading unit;
+  unit.pressure_factors.assign(problem_.pressures.size(), 0.0);
+  unit.pressure_factors.at(static_cast<size_t>(k)) = 1.0 / problem_.pressures[static_cast<size_t>(k)].pressure_pa;
+  Eigen::VectorXd R = Eigen::VectorXd::Zero(num_equations());
+  add_faces(x, unit, R, nullptr);
+  return R;
+}
+
+Eigen::VectorXd Assembler::equation_rows(const Positions& field) const {
+  Eigen::VectorXd r = Eigen::VectorXd::Zero(num_equations());
+  for (int d = 0; d < 3 * num_nodes_; ++d) {
+    const int eq = free_eq_[static_cast<size_t>(d)];
+    if (eq >= 0) r(eq) = field.data()[d];
+  }
+  return r;
+}
+
 void Assembler::add_increment(const Eigen::VectorXd& delta, double alpha, Positions& x, Eigen::VectorXd& p) const {
   for (int d = 0; d < 3 * num_nodes_; ++d) {
     const int eq = free_eq_[static_cast<size_t>(d)];

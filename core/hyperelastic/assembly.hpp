@@ -80,6 +80,13 @@ class Assembler {
   /// Lumped mass of each node, kg.
   const Eigen::VectorXd& node_masses() const { return masses_; }
 
+  /// The residual of pressure load `k` at 1 Pa on the faces at positions x (its part of
+  /// R, in equation rows, N/Pa): dR / d(its pressure), for unknown pressures bordered onto
+  /// Newton (newton_iterate_bordered).
+  Eigen::VectorXd unit_pressure_residual(const Positions& x, int k) const;
+  /// A per-node field's free components in equation rows (zero pressure rows).
+  Eigen::VectorXd equation_rows(const Positions& field) const;
+
   /// x += alpha * (displacement part of delta) on free components; p += alpha * (pressure part).
   void add_increment(const Eigen::VectorXd& delta, double alpha, Positions& x, Eigen::VectorXd& p) const;
   /// Norm of the displacement rows (N) and of the pressure rows (m^3) of a residual.

@@ -21,8 +21,7 @@ CirculationCoupledDynamics::CirculationCoupledDynamics(DynamicSolver& solver, co
       state_(initial),
       cavities_(std::move(cavities)),
       tolerance_(volume_tolerance),
-      max_iterations_(max_iterations),
-      num_loads_(static_cast<int>(problem.pressures.size())) {
+      max_iterations_(max_iterations) {
   if (cavities_.empty() || cavities_.size() > 2) throw std::invalid_argument("circulation: one or two cavities");
   for (const CoupledCavity& c : cavities_) {
     if (c.pressure_load < 0 || c.pressure_load >= static_cast<int>(problem.pressures.size()))
@@ -45,100 +44,53 @@ CoupledStepReport CirculationCoupledDynamics::step(Loading loading) {
   const int m = static_cast<int>(cavities_.size());
   const double h = solver_.dt_s();
   CoupledStepReport rep;
-  // The caller's factors for its own loads (ramps) are kept; the cavities' are set below.
-  loading.pressure_factors.resize(static_cast<size_t>(num_loads_), 1.0);
-  struct Eval {
-    Positions x;
-    Eigen::VectorXd p, residual, volume;
-    circulation::State loop;
-    Eigen::Matrix2d dloop;
-    bool ok = false;
-  };
-  Positions guess = solver_.predicted_positions();
-  Eigen::VectorXd guess_p = solver_.pressures();
-  const auto evaluate = [&](const Eigen::VectorXd& pressures) {
-    Eval e;
+  std::vector<int> loads;
+  Eigen::VectorXd P(m), tolerance(m);
+  for (int k = 0; k < m; ++k) {
+    const CoupledCavity& c = cavities_[static_cast<size_t>(k)];
+    loads.push_back(c.pressure_load);
+    P(k) = state_.external_pa[slot(c.chamber)];
+    tolerance(k) = tolerance_ * rest_volumes_[static_cast<size_t>(k)];
+  }
+  circulation::State loop;
+  Border border;
+  border.tolerance = tolerance;
+  // g_k = V_k(x) - V_loop,k(P): the cavity's volume against the loop's after its step with
+  // the ventricle pressures P.
+  border.constraints = [&](const Positions& x, const Eigen::VectorXd& pressures, Eigen::VectorXd& g,
+                           std::vector<Eigen::VectorXd>& G, Eigen::MatrixXd& dg_dP) {
     std::array<double, 2> ext = state_.external_pa;
+    for (int k = 0; k < m; ++k) ext[slot(cavities_[static_cast<size_t>(k)].chamber)] = pressures(k);
+    Eigen::Matrix2d dloop;
+    loop = circulation::step(parameters_, state_, h, ext, &dloop);
+    g.resize(m);
+    G.resize(static_cast<size_t>(m));
+    dg_dP.resize(m, m);
     for (int k = 0; k < m; ++k) {
       const CoupledCavity& c = cavities_[static_cast<size_t>(k)];
-      loading.pressure_factors[static_cast<size_t>(c.pressure_load)] = pressures(k);
-      ext[slot(c.chamber)] = pressures(k);
-    }
-    e.x = guess;
-    e.p = guess_p;
-    const DynamicStepReport s = solver_.solve_step(loading, e.x, e.p);
-    rep.newton_iterations += s.iterations;
-    ++rep.pressure_iterations;
-    if (!s.converged) {
-      rep.message = s.message;
-      return e;
-    }
-    e.loop = circulation::step(parameters_, state_, h, ext, &e.dloop);
-    e.volume.resize(m);
-    e.residual.resize(m);
-    for (int k = 0; k < m; ++k) {
-      e.volume(k) = volume(k, e.x);
-      e.residual(k) = e.volume(k) - e.loop.volume_m3[static_cast<size_t>(cavities_[static_cast<size_t>(k)].chamber)];
-    }
-    e.ok = true;
-    guess = e.x;  // the next iteration starts from here
-    guess_p = e.p;
-    return e;
-  };
-  const auto size_of = [&](const Eigen::VectorXd& r) {
-    double s = 0;
-    for (int k = 0; k < m; ++k) s = std::max(s, std::abs(r(k)) / rest_volumes_[static_cast<size_t>(k)]);
-    return s;
-  };
-  const auto loop_slope = [&](const Eval& e) {
-    Eigen::MatrixXd J(m, m);
-    for (int k = 0; k < m; ++k)
+      g(k) = volume(k, x) - loop.volume_m3[static_cast<size_t>(c.chamber)];
+      G[static_cast<size_t>(k)] = solver_.assembler().equation_rows(cavity_volume_gradient(c.surface, x));
       for (int j = 0; j < m; ++j)
-        J(k, j) = e.dloop(static_cast<Eigen::Index>(slot(cavities_[static_cast<size_t>(k)].chamber)),
-                          static_cast<Eigen::Index>(slot(cavities_[static_cast<size_t>(j)].chamber)));
-    return J;
-  };
-  Eigen::VectorXd p(m);
-  for (int k = 0; k < m; ++k) p(k) = state_.external_pa[slot(cavities_[static_cast<size_t>(k)].chamber)];
-  Eval e = evaluate(p);
-  if (!e.ok) return rep;
-  if (!have_slope_) {  // the cavities' volume slope by finite differences, once
-    slope_.resize(m, m);
-    for (int j = 0; j < m; ++j) {
-      Eigen::VectorXd q = p;
-      const double dp = 1e-3 * std::abs(p(j)) + 10.0;
-      q(j) += dp;
-      const Eval f = evaluate(q);
-      if (!f.ok) return rep;
-      slope_.col(j) = (f.volume - e.volume) / dp;
+        dg_dP(k, j) = -dloop(static_cast<Eigen::Index>(slot(c.chamber)),
+                             static_cast<Eigen::Index>(slot(cavities_[static_cast<size_t>(j)].chamber)));
     }
-    have_slope_ = true;
-    guess = e.x;
-    guess_p = e.p;
-  }
-  double size = size_of(e.residual);
-  while (size > tolerance_ && rep.pressure_iterations < max_iterations_) {
-    const Eigen::VectorXd dp = (slope_ - loop_slope(e)).partialPivLu().solve(-e.residual);
-    const Eval f = evaluate(p + dp);
-    if (!f.ok) return rep;
-    // Broyden's update of the cavities' slope from the volumes' change, unless the change
-    // is within the body's Newton tolerance (a tiny pressure step: the solve may not move).
-    const Eigen::VectorXd dv = f.volume - e.volume;
-    const Eigen::MatrixXd updated = slope_ + (dv - slope_ * dp) * dp.transpose() / dp.squaredNorm();
-    const bool meaningful = updated.diagonal().minCoeff() > 0.2 * slope_.diagonal().minCoeff() &&
-                            updated.diagonal().maxCoeff() < 5 * slope_.diagonal().maxCoeff();
-    if (meaningful) slope_ = updated;
-    p += dp;
-    e = f;
-    size = size_of(e.residual);
-  }
-  if (!(size <= tolerance_)) {
-    rep.message = "circulation: cavity pressures did not converge (volume mismatch " + std::to_string(size) + " of the rest volume)";
+  };
+  Positions x = solver_.predicted_positions();
+  Eigen::VectorXd p = solver_.pressures();
+  const DynamicStepReport r = solver_.solve_step_bordered(std::move(loading), loads, border, x, p, P);
+  rep.newton_iterations = r.iterations;
+  rep.pressure_iterations = r.iterations;
+  if (!r.converged) {
+    rep.message = r.message;
     return rep;
   }
-  solver_.accept_step(e.x, e.p);
-  state_ = e.loop;
-  for (int k = 0; k < m; ++k) volumes_[static_cast<size_t>(k)] = e.volume(k);
+  std::vector<Eigen::VectorXd> G;
+  Eigen::VectorXd g;
+  Eigen::MatrixXd dg;
+  border.constraints(x, P, g, G, dg);  // the loop's state at the converged pressures
+  solver_.accept_step(x, p);
+  state_ = loop;
+  for (int k = 0; k < m; ++k) volumes_[static_cast<size_t>(k)] = volume(k, x);
   last_iterations_ = rep.pressure_iterations;
   rep.converged = true;
   return rep;
@@ -148,7 +100,6 @@ DynamicState CirculationCoupledDynamics::checkpoint() const {
   DynamicState s = solver_.state();
   s.circulation = state_;
   s.cavity_volume_m3 = volumes_;
-  if (have_slope_) s.cavity_slope = slope_;
   return s;
 }
 
@@ -156,14 +107,9 @@ void CirculationCoupledDynamics::restore(const DynamicState& s) {
   if (s.cavity_volume_m3.size() != cavities_.size())
     throw std::invalid_argument("dynamic state: " + std::to_string(s.cavity_volume_m3.size()) + " coupled cavities, the run has " +
                                 std::to_string(cavities_.size()));
-  const auto n = static_cast<Eigen::Index>(cavities_.size());
-  if (s.cavity_slope.size() != 0 && (s.cavity_slope.rows() != n || s.cavity_slope.cols() != n))
-    throw std::invalid_argument("dynamic state: a cavity volume slope of the wrong size");
   solver_.restore(s);
   state_ = s.circulation;
   volumes_ = s.cavity_volume_m3;
-  have_slope_ = s.cavity_slope.size() != 0;
-  slope_ = s.cavity_slope;
   last_iterations_ = 0;
 }
 
@@ -171,8 +117,6 @@ void CirculationCoupledDynamics::continue_from(const CirculationCoupledDynamics&
   if (previous.cavities_.size() != cavities_.size()) throw std::invalid_argument("circulation: another set of coupled cavities");
   state_ = previous.state_;
   volumes_ = previous.volumes_;
-  slope_ = previous.slope_;
-  have_slope_ = previous.have_slope_;
 }
 
 }  // namespace fiberfem::core::hyperelastic

@@ -1,14 +1,14 @@
 #pragma once
 /// @file The accurate tier's time steps coupled to the lumped circulation
 /// (docs/circulation.md): the problem's pressure load k is cavity k's blood pressure (its
-/// PressureLoad::pressure_pa must be 1 Pa, scaled each step by Loading::pressure_factors),
-/// and every step the cavity pressures are iterated until each cavity's volume at the end
-/// of the converged Newton step equals the loop's. Each iteration is a full (not committed)
-/// Newton step warm-started from the previous one; the pressures' Jacobian is the loop's
-/// exact one minus the cavities' volume slope, estimated by finite differences at the first
-/// step and kept up to date by Broyden's secant updates. The volumes are as exact as the
-/// body's Newton solves (NewtonSettings::tolerance): the volume tolerance must be above
-/// what that leaves (about 1e-9 of the cavity at the default 1e-9).
+/// PressureLoad::pressure_pa must be 1 Pa, scaled each step by Loading::pressure_factors).
+/// Each step solves the body and the cavity pressures together: the pressures are unknowns
+/// bordered onto the step's Newton iteration with one constraint per cavity, its volume at
+/// the step's end equal to the loop's after the loop's backward-Euler step with those
+/// pressures (newton_iterate_bordered: per iteration one solve for the body's residual and
+/// one per cavity with the same tangent, then the 1 x 1 or 2 x 2 Schur complement). The
+/// volumes are as exact as the body's Newton solve (NewtonSettings::tolerance): the volume
+/// tolerance must be above what that leaves (about 1e-8 of the cavity at the default 1e-9).
 
 #include "core/cavity.hpp"
 #include "core/circulation/circulation.hpp"
@@ -27,8 +27,8 @@ struct CoupledCavity {
 
 struct CoupledStepReport {
   bool converged = false;
-  int pressure_iterations = 0;  ///< Newton steps of the body solved (each one converged).
-  int newton_iterations = 0;    ///< Summed over them.
+  int pressure_iterations = 0;  ///< Newton iterations updating the pressures (all of the step's).
+  int newton_iterations = 0;    ///< Newton iterations of the step.
   std::string message;
 };
 
@@ -46,16 +46,16 @@ class CirculationCoupledDynamics {
   /// The cavities' volumes at the current state, m^3.
   const std::vector<double>& volumes() const { return volumes_; }
   const circulation::Parameters& parameters() const { return parameters_; }
-  /// Newton iterations on the pressures (converged body solves) of the last step.
+  /// Newton iterations on the pressures (with the body) of the last step.
   int last_pressure_iterations() const { return last_iterations_; }
 
-  /// The solver's state() with the coupling's (the loop, the volumes, the slope).
+  /// The solver's state() with the coupling's (the loop, the volumes).
   DynamicState checkpoint() const;
   /// Restores the solver and the coupling from a checkpoint() of the same problem; a state
   /// without cavity volumes (of an uncoupled run) is refused.
   /// @throws std::invalid_argument naming what does not fit (nothing changes then).
   void restore(const DynamicState& s);
-  /// Carries `previous`'s loop state, volumes and slope over (its solver's state is the
+  /// Carries `previous`'s loop state and volumes over (its solver's state is the
   /// caller's to carry: DynamicSolver::continue_from).
   void continue_from(const CirculationCoupledDynamics& previous);
 
@@ -67,10 +67,7 @@ class CirculationCoupledDynamics {
   std::vector<CoupledCavity> cavities_;
   double tolerance_;
   int max_iterations_;
-  int num_loads_;
   std::vector<double> volumes_, rest_volumes_;
-  Eigen::MatrixXd slope_;  // d V_cavity / d p, m^3/Pa (secant estimate)
-  bool have_slope_ = false;
   int last_iterations_ = 0;
 };
 

@@ -65,6 +65,47 @@ DynamicStepReport DynamicSolver::solve_step(const Loading& loading, Positions& x
   return rep;
 }
 
+DynamicStepReport DynamicSolver::solve_step_bordered(Loading loading, const std::vector<int>& loads, Border border, Positions& x,
+                                                     Eigen::VectorXd& p, Eigen::VectorXd& P) {
+  const double h = dt_s();
+  loading.pressure_factors.resize(problem_.pressures.size(), 1.0);
+  border.residual = [&](const Positions& xx, const Eigen::VectorXd& pp, const Eigen::VectorXd& PP, Eigen::VectorXd& R,
+                        SparseMatrix* K) {
+    for (size_t k = 0; k < loads.size(); ++k) loading.pressure_factors[static_cast<size_t>(loads[k])] = PP(static_cast<Eigen::Index>(k));
+    const Evaluation ev = assembler_.evaluate(xx, pp, loading, R, K);
+    assembler_.add_inertia(xx, x_, v_, h, settings_.mass_damping_1_s, R, K);
+    return ev;
+  };
+  border.unit_residuals = [&](const Positions& xx, std::vector<Eigen::VectorXd>& u) {
+    u.resize(loads.size());
+    for (size_t k = 0; k < loads.size(); ++k) u[k] = assembler_.unit_pressure_residual(xx, loads[k]);
+  };
+  // A guess that is not finite or inverts an element: the step's start instead.
+  Eigen::VectorXd R;
+  const Evaluation ev = border.residual(x, p, P, R, nullptr);
+  if (!ev.finite || ev.inverted_elements > 0) x = x_;
+  NewtonReport counters;
+  bool singular = false;
+  bool converged = false;
+  try {
+    converged = newton_iterate_bordered(assembler_, linear_, border, settings_.newton, x, p, P, counters, singular);
+  } catch (const std::runtime_error& e) {  // the constraints could not be evaluated
+    counters.message = e.what();
+  }
+  totals_.iterations += counters.iterations;
+  totals_.assembly_s += counters.assembly_s;
+  DynamicStepReport rep;
+  rep.iterations = counters.iterations;
+  rep.converged = converged;
+  if (!converged)
+    rep.message = singular ? "the step's tangent is singular"
+                  : !counters.message.empty() && counters.message.find("round-off") == std::string::npos
+                      ? counters.message
+                      : "Newton did not converge in " + std::to_string(settings_.newton.max_iterations) +
+                            " iterations (a smaller solver.dt, or a softer load)";
+  return rep;
+}
+
 void DynamicSolver::accept_step(const Positions& x, const Eigen::VectorXd& p) {
   v_ = (x - x_) / dt_s();
   x_ = x;

@@ -38,12 +38,10 @@ struct DynamicState {
   long steps = 0;           ///< Steps taken.
   TangentSolver::State linear;  ///< The lagged factor's matrices.
   /// A run coupled to a circulation (circulation_coupling.hpp; DynamicSolver neither writes
-  /// nor reads these): the loop's state, each coupled cavity's volume, m^3, and the secant
-  /// estimate of the cavities' volume slope, m^3/Pa (0 x 0 before the first step). Empty
-  /// cavity volumes: no circulation.
+  /// nor reads these): the loop's state and each coupled cavity's volume, m^3. Empty cavity
+  /// volumes: no circulation.
   circulation::State circulation;
   std::vector<double> cavity_volume_m3;
-  Eigen::MatrixXd cavity_slope;
 };
 
 class DynamicSolver {
@@ -57,9 +55,14 @@ class DynamicSolver {
   DynamicStepReport step(const Loading& loading);
   /// The same step without changing the state, from the guess `x` (3 x nodes; replaced by
   /// the rest of the step's start when it is not finite or inverts an element) and `p`:
-  /// on convergence they hold the step's end. For iterations on the loads of a step (the
-  /// cavity pressures of a circulation, circulation_coupling.hpp).
+  /// on convergence they hold the step's end.
   DynamicStepReport solve_step(const Loading& loading, Positions& x, Eigen::VectorXd& p);
+  /// solve_step with unknown load magnitudes bordered onto Newton (newton_iterate_bordered):
+  /// P_k is the factor of pressure load loads[k] (set in `loading`); `border`'s constraints
+  /// and tolerance are the caller's, its residual and unit residuals this step's. On
+  /// convergence (x, p, P) hold the step's end.
+  DynamicStepReport solve_step_bordered(Loading loading, const std::vector<int>& loads, Border border, Positions& x,
+                                        Eigen::VectorXd& p, Eigen::VectorXd& P);
   /// Makes a converged solve_step's end the state, one step later.
   void accept_step(const Positions& x, const Eigen::VectorXd& p);
   /// The predictor of the next step: the last velocity carried over it.
@@ -89,6 +92,8 @@ class DynamicSolver {
   /// without factorising again. @throws std::invalid_argument as restore (nothing moves then).
   void continue_from(DynamicSolver& previous);
   const DynamicSettings& settings() const { return settings_; }
+  /// The residual's assembler (its equation numbering and load vectors).
+  const Assembler& assembler() const { return assembler_; }
   /// Lumped node masses, kg.
   const Eigen::VectorXd& node_masses() const { return assembler_.node_masses(); }
 

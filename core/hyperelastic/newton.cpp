@@ -97,6 +97,98 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
   return ev.finite && ev.inverted_elements == 0 && converged_at(assembler, R, s.tolerance);
 }
 
+bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, const Border& border, const NewtonSettings& s,
+                             Positions& xt, Eigen::VectorXd& pt, Eigen::VectorXd& Pt, NewtonReport& rep, bool& singular) {
+  const double length = std::cbrt(assembler.volume_m3());
+  const Eigen::Index m = Pt.size();
+  Eigen::VectorXd R, Rn, delta, g, gn;
+  SparseMatrix K;
+  std::vector<Eigen::VectorXd> G, u, z(static_cast<size_t>(m));
+  Eigen::MatrixXd dg_dP;
+  // The border's constraints scaled by their tolerances, added to the force merit.
+  const auto merit_of = [&](const Eigen::VectorXd& r, const Eigen::VectorXd& gg) {
+    return merit(assembler, r) + s.tolerance * gg.cwiseQuotient(border.tolerance).cwiseAbs().sum();
+  };
+  auto t0 = Clock::now();
+  Evaluation ev = border.residual(xt, pt, Pt, R, &K);
+  rep.assembly_s += since(t0);
+  rep.residual_history.clear();
+  for (int it = 0; it < s.max_iterations && ev.finite && ev.inverted_elements == 0; ++it) {
+    border.constraints(xt, Pt, g, G, dg_dP);
+    const bool border_met = (g.cwiseAbs().array() <= border.tolerance.array()).all();
+    if (border_met && converged_at(assembler, R, s.tolerance)) return true;
+    const double m0 = merit_of(R, g);
+    const double forcing = std::clamp(merit(assembler, R), 1e-12, 1e-2);
+    if (!linear.solve(K, R, forcing, false, delta)) {
+      singular = true;
+      return false;
+    }
+    // The responses to each bordered unknown, to the same forcing (an inexact Schur
+    // complement slows Newton less than refactorising for tighter solves).
+    border.unit_residuals(xt, u);
+    for (Eigen::Index k = 0; k < m; ++k)
+      if (!linear.solve(K, u[static_cast<size_t>(k)], forcing, false, z[static_cast<size_t>(k)])) {
+        singular = true;
+        return false;
+      }
+    // R + K dx + U dP = 0 and g + G.dx + dg/dP dP = 0, with dx = -delta - Z dP:
+    // (dg/dP - G^T Z) dP = -g + G^T delta.
+    Eigen::MatrixXd S = dg_dP;
+    Eigen::VectorXd rhs = -g;
+    for (Eigen::Index k = 0; k < m; ++k) {
+      rhs(k) += G[static_cast<size_t>(k)].dot(delta);
+      for (Eigen::Index j = 0; j < m; ++j) S(k, j) -= G[static_cast<size_t>(k)].dot(z[static_cast<size_t>(j)]);
+    }
+    const Eigen::VectorXd dP = S.fullPivLu().solve(rhs);
+    Eigen::VectorXd increment = -delta;
+    for (Eigen::Index j = 0; j < m; ++j) increment -= dP(j) * z[static_cast<size_t>(j)];
+    if (!increment.allFinite() || !dP.allFinite()) return false;
+    constexpr double kMaxGrowth = 1e3;  // as newton_iterate: a safeguard, not a descent test
+    double alpha = 1.0;
+    Positions xn;
+    Eigen::VectorXd pn, Pn;
+    bool accepted = false;
+    for (int l = 0; l < (s.line_search ? 20 : 1); ++l, alpha *= 0.5) {
+      xn = xt;
+      pn = pt;
+      Pn = Pt + alpha * dP;
+      assembler.add_increment(increment, alpha, xn, pn);
+      t0 = Clock::now();
+      ev = border.residual(xn, pn, Pn, Rn, nullptr);
+      rep.assembly_s += since(t0);
+      if (!ev.finite || ev.inverted_elements > 0) continue;
+      try {
+        std::vector<Eigen::VectorXd> Gn;
+        Eigen::MatrixXd dn;
+        border.constraints(xn, Pn, gn, Gn, dn);
+      } catch (const std::runtime_error&) {
+        continue;
+      }
+      if (merit_of(Rn, gn) < kMaxGrowth * m0) {
+        accepted = true;
+        break;
+      }
+    }
+    ++rep.iterations;
+    if (!accepted) return false;
+    xt = xn;
+    pt = pn;
+    Pt = Pn;
+    t0 = Clock::now();
+    ev = border.residual(xt, pt, Pt, R, &K);
+    rep.assembly_s += since(t0);
+    rep.residual_history.push_back(assembler.displacement_norm(R) / assembler.reference_load_norm());
+    const double moved = alpha * increment.head(assembler.num_free_displacements()).lpNorm<Eigen::Infinity>();
+    if (moved <= kRoundOff * length && merit_of(R, gn) > 0.5 * m0) {
+      rep.message = "stopped at the round-off floor (relative residual " + std::to_string(rep.residual_history.back()) + ")";
+      return (gn.cwiseAbs().array() <= border.tolerance.array()).all();
+    }
+  }
+  if (!ev.finite || ev.inverted_elements > 0) return false;
+  border.constraints(xt, Pt, g, G, dg_dP);
+  return (g.cwiseAbs().array() <= border.tolerance.array()).all() && converged_at(assembler, R, s.tolerance);
+}
+
 NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::VectorXd& p_io, const NewtonSettings& s) {
   s.validate();
   Assembler assembler(problem);

@@ -55,6 +55,33 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
                     Positions& x, Eigen::VectorXd& p, Eigen::VectorXd& R, SparseMatrix& K, Evaluation& ev,
                     NewtonReport& report, bool& singular);
 
+/// Unknowns bordered onto Newton's iteration: m load magnitudes P (a circulation's cavity
+/// pressures, Pa) on which the residual depends linearly, R(x, p; P) = R_0 + sum_k P_k u_k(x),
+/// with one constraint each, g(x, P) = 0.
+struct Border {
+  /// The residual with the loads at P (and, with K, its tangent in x and p).
+  std::function<Evaluation(const Positions& x, const Eigen::VectorXd& p, const Eigen::VectorXd& P, Eigen::VectorXd& R,
+                           SparseMatrix* K)>
+      residual;
+  /// u_k(x) = dR/dP_k, each in equation rows.
+  std::function<void(const Positions& x, std::vector<Eigen::VectorXd>& u)> unit_residuals;
+  /// The constraints g (size m) at (x, P), their gradients in x in equation rows (G[k]),
+  /// and dg/dP (m x m). @throws std::runtime_error when they cannot be evaluated there.
+  std::function<void(const Positions& x, const Eigen::VectorXd& P, Eigen::VectorXd& g, std::vector<Eigen::VectorXd>& G,
+                     Eigen::MatrixXd& dg_dP)>
+      constraints;
+  /// Converged when also |g_k| <= tolerance(k) for every k.
+  Eigen::VectorXd tolerance;
+};
+
+/// Newton's iterations on R(x, p; P) = 0, g(x, P) = 0 from (x, p, P), the border eliminated
+/// each iteration (one solve for R and one per unknown P_k with the same tangent, then the
+/// m x m Schur complement on P), with the line search and round-off floor of
+/// newton_iterate. On return (x, p, P) are the last accepted iterate.
+/// @return whether it converged; `singular` when a tangent could not be factorised.
+bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, const Border& border, const NewtonSettings& s,
+                             Positions& x, Eigen::VectorXd& p, Eigen::VectorXd& P, NewtonReport& report, bool& singular);
+
 /// Solves R(x, p) = 0 at load factor 1 from (x, p) (the rest shape and zero pressure when
 /// empty). On failure (x, p) hold the last converged load level.
 /// @throws std::invalid_argument for an invalid problem or settings.

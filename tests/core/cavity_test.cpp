@@ -78,6 +78,30 @@ TEST(Cavity, DerivativeIsTheAreaVectorOfTheNodesFaces) {
   EXPECT_NEAR(dv / (-d.dot(area) / 3.0), 1.0, 1e-5);
 }
 
+// cavity_volume_gradient against central differences of cavity_volume, at every node of a
+// randomly deformed ventricle (surface nodes, rim nodes with the lid's centre, and nodes
+// off the surface, whose gradient is zero).
+TEST(Cavity, VolumeGradientMatchesFiniteDifferences) {
+  const core::TetMesh m = lv(12, 6, 2);
+  const core::CavitySurface s = core::cavity_surface(m, m.node_set("endo"));
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-5e-4, 5e-4);
+  core::Positions x = m.rest_positions();
+  for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] += jitter(rng);
+  const core::Positions g = core::cavity_volume_gradient(s, x);
+  ASSERT_EQ(g.cols(), x.cols());
+  const double h = 1e-6, scale = g.cwiseAbs().maxCoeff();
+  ASSERT_GT(scale, 0);
+  for (Eigen::Index n = 0; n < x.cols(); ++n)
+    for (int i = 0; i < 3; ++i) {
+      core::Positions xp = x, xm = x;
+      xp(i, n) += h;
+      xm(i, n) -= h;
+      const double fd = (core::cavity_volume(s, xp) - core::cavity_volume(s, xm)) / (2 * h);
+      ASSERT_NEAR(g(i, n), fd, 1e-6 * scale) << "node " << n << " component " << i;
+    }
+}
+
 TEST(Cavity, BadInput) {
   const core::TetMesh m = lv(12, 4, 1);
   fiberfem::testing::expect_invalid([&] { core::cavity_surface(m, {0}); }, {"no boundary triangle"});
