@@ -64,6 +64,15 @@ void RunEndpoints::publish_status(const StatusData& d) {
   dds::with_sample(mine, [&](const fiberfem_ServiceStatus& m) { status_.write(m); });
 }
 
+void RunEndpoints::enable_circulation() {
+  if (!circulation_) circulation_.emplace(pp_);
+}
+
+void RunEndpoints::publish_circulation(unsigned long frame, const core::circulation::Snapshot& s) {
+  enable_circulation();  // a run whose engine gained a circulation after the start
+  dds::with_sample(dds::Circulation{run_id_, frame, s}, [&](const fiberfem_CirculationState& m) { circulation_->write(m); });
+}
+
 void RunEndpoints::write_ack(const std::string& command_id, const std::string& client_id, const Answer& a) {
   std::string cid = command_id, client = client_id, reason = a.reason;
   fiberfem_CommandAck ack{};

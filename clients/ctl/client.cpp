@@ -203,6 +203,19 @@ std::optional<State> Client::next_state(const std::string& run_id, std::chrono::
   return std::nullopt;
 }
 
+std::vector<Circulation> Client::circulation(const std::string& run_id, std::chrono::milliseconds wait, long after_frame) {
+  if (!circulation_reader_) circulation_reader_.emplace(pp_);
+  const auto deadline = Clock::now() + wait;
+  std::vector<Circulation> out;
+  do {
+    circulation_reader_->take([&](const fiberfem_CirculationState& s, const dds_sample_info_t&) {
+      if (dds::str(s.run_id) == run_id && static_cast<long>(s.frame) > after_frame) out.push_back(dds::to_record(s));
+    });
+    if (!out.empty()) return out;
+  } while (circulation_reader_->wait(left(deadline)) || Clock::now() < deadline);
+  return out;
+}
+
 void Client::await_command_reader(const std::string& run_id, Clock::time_point deadline) {
   // Commands are volatile: write only once the command reader of the run's own participant
   // (known from its newest status) is matched.
