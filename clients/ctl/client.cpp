@@ -203,8 +203,12 @@ std::optional<State> Client::next_state(const std::string& run_id, std::chrono::
   return std::nullopt;
 }
 
-std::vector<Circulation> Client::circulation(const std::string& run_id, std::chrono::milliseconds wait, long after_frame) {
+void Client::listen_circulation() {
   if (!circulation_reader_) circulation_reader_.emplace(pp_);
+}
+
+std::vector<Circulation> Client::circulation(const std::string& run_id, std::chrono::milliseconds wait, long after_frame) {
+  listen_circulation();
   const auto deadline = Clock::now() + wait;
   std::vector<Circulation> out;
   do {

@@ -80,9 +80,12 @@ class Client {
   std::optional<State> next_state(const std::string& run_id, std::chrono::milliseconds wait, long after_frame = -1);
   /// The circulation samples of `run_id` newer than `after_frame` (any if negative), oldest
   /// first: those that have arrived, waiting up to `wait` for one. Empty when none came (a
-  /// run without a circulation publishes none). The reader is made at the first call: a
-  /// caller that wants every sample calls it once early (with no wait).
+  /// run without a circulation publishes none). The reader is made at the first call
+  /// unless listen_circulation() made it before.
   std::vector<Circulation> circulation(const std::string& run_id, std::chrono::milliseconds wait, long after_frame = -1);
+  /// Makes the circulation reader now (it then matches the services' writers while the
+  /// caller looks for its run; samples are volatile: none written before it matched arrive).
+  void listen_circulation();
   /// Sends a command and waits for its acknowledgement, writing it again under the same id
   /// every kResendAfter without one (a command written just before the service had
   /// discovered this client is not delivered; the service applies an id once and answers

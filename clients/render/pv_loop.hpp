@@ -11,14 +11,17 @@
 
 namespace fiberfem::render {
 
-/// The points of the loops so far, in time order.
+/// The points of the loops so far, in time order: the newest kMaxPoints (a long run's
+/// loop costs what about 17 s of frames at 60/s cost).
 struct PvLoop {
+  static constexpr size_t kMaxPoints = 1000;
   std::vector<std::array<double, 2>> lv;  ///< Left ventricle (volume m^3, pressure Pa).
   std::vector<std::array<double, 2>> rv;  ///< Right ventricle (volume m^3, pressure Pa).
-  /// Appends one sample of each ventricle (SI units).
+  /// Appends one sample of each ventricle (SI units), dropping the oldest beyond kMaxPoints.
   void add(double lv_volume_m3, double lv_pressure_pa, double rv_volume_m3, double rv_pressure_pa) {
     lv.push_back({lv_volume_m3, lv_pressure_pa});
     rv.push_back({rv_volume_m3, rv_pressure_pa});
+    if (lv.size() > kMaxPoints) lv.erase(lv.begin()), rv.erase(rv.begin());
   }
   bool empty() const { return lv.empty(); }
 };

@@ -18,7 +18,6 @@ import re
 import subprocess
 import sys
 import tempfile
-import time
 
 import h5py
 import numpy as np
@@ -61,7 +60,10 @@ def serve_and_echo(fiberfem, scene, steps, beats, client):
         assert client.resolve_run(run, 20) == run
         echo = subprocess.Popen([fiberfem, "ctl", "--run", run, "echo", "--circulation", "--count", "5"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        time.sleep(1.0)  # the echo client's reader matched before the run goes on
+        # Paused, the service publishes its state (and circulation) once a second: the echo's
+        # first line says its reader is matched before the run goes on.
+        first = echo.stdout.readline()
+        assert first.startswith("frame 0 "), (first, echo.stderr.read() if echo.poll() is not None else "")
         assert client.send(run, "resume").accepted
         seen = []
         for c in client.circulation_states(run, wait_s=10):
@@ -69,6 +71,7 @@ def serve_and_echo(fiberfem, scene, steps, beats, client):
             if c.frame >= 120:
                 break
         out, err = echo.communicate(timeout=30)
+        out = first + out
         assert echo.returncode == 0, (out, err)
     finally:
         serve.terminate()
