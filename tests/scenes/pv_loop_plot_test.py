@@ -3,7 +3,8 @@ beats writes a report and an archive; the script draws the loops of either into 
 the expected size with both panels drawn (coloured pixels in each half), and refuses a
 report without a circulation. The archive's per-frame circulation (read with h5py) equals
 the report's per-step columns at the same step, and `fiberfem archive export-circulation`
-writes the same numbers as CSV.
+writes the same numbers as CSV; an archive without a circulation has no such dataset and
+both tools refuse it by name.
 
 Usage: pv_loop_plot_test.py PATH/TO/fiberfem SOURCE_DIR
 """
@@ -73,6 +74,17 @@ def main():
         res = subprocess.run([sys.executable, script, bare, os.path.join(d, "x.png")], capture_output=True, text=True)
         assert res.returncode != 0 and "no 'circulation' section" in (res.stderr + res.stdout), res
         assert not os.path.exists(os.path.join(d, "x.png"))
+        # An archive of a run without a circulation: no /frames/circulation, clear errors.
+        plain = os.path.join(d, "plain.h5")
+        subprocess.run([fiberfem, "run", os.path.join(src, "configs/scenes/heart.yaml"), "--until", "0.05", "--archive", plain],
+                       check=True, capture_output=True)
+        with h5py.File(plain, "r") as f:
+            assert "frames/circulation" not in f
+        res = subprocess.run([fiberfem, "archive", "export-circulation", plain, os.path.join(d, "x.csv")], capture_output=True,
+                             text=True)
+        assert res.returncode == 1 and "has no circulation" in res.stderr, res
+        res = subprocess.run([sys.executable, script, plain, os.path.join(d, "x.png")], capture_output=True, text=True)
+        assert res.returncode != 0 and "no frames/circulation" in (res.stderr + res.stdout), res
     print("pv loop plot: ok")
 
 
