@@ -2,6 +2,7 @@
 // on the scene's element mesh, its probes interpolated with the element's shape functions,
 // in the same report sections as the real-time tier's static solve.
 
+#include "service/batch_circulation.hpp"
 #include "service/batch_report.hpp"
 #include "service/batch_series.hpp"
 
@@ -49,6 +50,7 @@ int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out) {
                 ap.problem->mixed() ? ", incompressible (mixed displacement-pressure)" : "");
   out << line;
   if (!ap.problem->active_tension_pa.empty()) out << "static: the contraction is held at its peak tension\n";
+  if (sc.model.circulation.enabled()) out << "static: note: the circulation loads the cavities in dynamic runs only\n";
   core::Positions x;
   Eigen::VectorXd p;
   const core::hyperelastic::NewtonReport r = core::hyperelastic::solve_static(*ap.problem, x, p, ap.newton);
@@ -96,6 +98,7 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
   out << line;
   const StopSignals stop_signals;  // an interrupted run still writes its report
   RunSeries series(sc, run.engine());  // cavity volumes and probes per beat, from the rest state
+  CirculationSeries circulation(sc, run.engine());
   start_run(run, o, report, out);
   std::string reason;
   int done = static_cast<int>(engine.step_count()), most_iterations = 0;
@@ -108,6 +111,7 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
     }
     done = s;
     series.add(run.engine(), run.cavity_volumes());
+    circulation.add(run.engine());
     if (run.recorded_frames() != frames_before) log_frame(run, o, out);
     most_iterations = std::max(most_iterations, r.solver_iterations);
     if (steps >= 5 && s % (steps / 5) != 0 && s != steps) continue;
@@ -144,6 +148,7 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
   report["steps"] = {{"requested", steps}, {"completed", done}, {"dt_s", engine.dt_s()}, {"simulated_time_s", engine.time_s()}};
   report["probes"] = probes;
   series.finish(run.engine(), report, out);
+  circulation.finish(report, out);
   return completed ? 0 : 1;
 }
 

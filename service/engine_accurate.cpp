@@ -13,8 +13,19 @@ using Clock = std::chrono::steady_clock;
 
 }  // namespace
 
-AccurateEngine::AccurateEngine(const io::Scene& scene) : scene_(scene), problem_(io::accurate_problem(scene)) {
-  solver_ = std::make_unique<core::hyperelastic::DynamicSolver>(*problem_.problem, io::accurate_dynamic_settings(scene_, problem_));
+AccurateEngine::AccurateEngine(const io::Scene& scene)
+    : scene_(scene), problem_(io::accurate_problem(scene)), cavities_(io::add_circulation_loads(scene_, problem_)) {
+  start(io::accurate_dynamic_settings(scene_, problem_));
+}
+
+void AccurateEngine::start(const core::hyperelastic::DynamicSettings& settings) {
+  coupled_.reset();  // it refers to the solver it replaces
+  solver_ = std::make_unique<core::hyperelastic::DynamicSolver>(*problem_.problem, settings);
+  if (!cavities_.empty()) {
+    const core::circulation::Coupling& c = scene_.model.circulation;
+    coupled_ = std::make_unique<core::hyperelastic::CirculationCoupledDynamics>(*solver_, *problem_.problem, c.parameters, c.initial,
+                                                                                 cavities_, c.volume_tolerance, c.max_iterations);
+  }
   update_tension();
 }
 
@@ -25,17 +36,25 @@ core::StepReport AccurateEngine::step() {
   std::vector<double> tension;
   core::hyperelastic::Loading loading = io::accurate_loading(scene_, solver_->time_s() + dt_s(), tension);
   if (nodal_forces_n_.cols() > 0) loading.nodal_forces_n = &nodal_forces_n_;
-  const core::hyperelastic::DynamicStepReport r = solver_->step(loading);
-  const core::hyperelastic::NewtonReport after = solver_->totals();
   core::StepReport rep;
-  rep.status = r.converged ? core::StepStatus::ok : core::StepStatus::failed;
-  rep.message = r.message;
-  rep.solver_iterations = r.iterations;
+  if (coupled_) {  // the cavities' pressures iterated with the body's steps
+    const core::hyperelastic::CoupledStepReport r = coupled_->step(loading);
+    rep.status = r.converged ? core::StepStatus::ok : core::StepStatus::failed;
+    rep.message = r.message;
+    rep.solver_iterations = r.newton_iterations;
+    rep.circulation_iterations = r.pressure_iterations;
+  } else {
+    const core::hyperelastic::DynamicStepReport r = solver_->step(loading);
+    rep.status = r.converged ? core::StepStatus::ok : core::StepStatus::failed;
+    rep.message = r.message;
+    rep.solver_iterations = r.iterations;
+  }
+  const core::hyperelastic::NewtonReport after = solver_->totals();
   rep.solver_factorizations = after.factorisations - before.factorisations;
   rep.time.assembly_s = after.assembly_s - before.assembly_s;
   rep.time.solve_s = after.factor_s - before.factor_s;
   rep.time_s = solver_->time_s();
-  if (r.converged) tension_pa_ = std::move(tension);
+  if (rep.status == core::StepStatus::ok) tension_pa_ = std::move(tension);
   // Kinetic energy of the lumped masses and the fastest node, of the state now.
   const Eigen::VectorXd& m = solver_->node_masses();
   const core::Positions& v = solver_->velocities();
@@ -65,17 +84,19 @@ void AccurateEngine::set_point_forces(const std::vector<core::PointForce>& force
 void AccurateEngine::restore(const EngineCheckpoint& c) {
   const auto* s = std::get_if<core::hyperelastic::DynamicState>(&c);
   if (s == nullptr) throw std::invalid_argument("checkpoint of the real-time tier: this run is on the accurate tier");
-  solver_->restore(*s);
+  if (coupled_) coupled_->restore(*s);
+  else if (!s->cavity_volume_m3.empty()) throw std::invalid_argument("checkpoint of a run with a circulation: this scene has none");
+  else solver_->restore(*s);
   update_tension();
 }
 
-void AccurateEngine::reset() {
-  solver_ = std::make_unique<core::hyperelastic::DynamicSolver>(*problem_.problem, solver_->settings());
-  update_tension();
-}
+void AccurateEngine::reset() { start(solver_->settings()); }
 
 std::unique_ptr<AccurateEngine> AccurateEngine::rebuilt(const io::Scene& running) {
   auto next = std::make_unique<AccurateEngine>(running);
+  if (static_cast<bool>(next->coupled_) != static_cast<bool>(coupled_))
+    throw std::invalid_argument("the running scene adds or removes the circulation");
+  if (coupled_) next->coupled_->continue_from(*coupled_);
   next->solver_->continue_from(*solver_);
   next->nodal_forces_n_ = nodal_forces_n_;
   next->update_tension();

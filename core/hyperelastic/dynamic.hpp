@@ -6,9 +6,11 @@
 /// and mass-proportional damping alpha. The incompressibility constraint, when a region
 /// has one, holds at every step.
 
+#include "core/circulation/circulation.hpp"
 #include "core/hyperelastic/newton.hpp"
 
 #include <string>
+#include <vector>
 
 namespace fiberfem::core::hyperelastic {
 
@@ -35,6 +37,13 @@ struct DynamicState {
   double time_s = 0;        ///< Simulation time, s.
   long steps = 0;           ///< Steps taken.
   TangentSolver::State linear;  ///< The lagged factor's matrices.
+  /// A run coupled to a circulation (circulation_coupling.hpp; DynamicSolver neither writes
+  /// nor reads these): the loop's state, each coupled cavity's volume, m^3, and the secant
+  /// estimate of the cavities' volume slope, m^3/Pa (0 x 0 before the first step). Empty
+  /// cavity volumes: no circulation.
+  circulation::State circulation;
+  std::vector<double> cavity_volume_m3;
+  Eigen::MatrixXd cavity_slope;
 };
 
 class DynamicSolver {
