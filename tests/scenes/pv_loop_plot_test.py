@@ -3,7 +3,7 @@ beats writes a report and an archive; the script draws the loops of either into 
 the expected size with both panels drawn (coloured pixels in each half), and refuses a
 report without a circulation. The archive's per-frame circulation (read with h5py) equals
 the report's per-step columns at the same step, and `fiberfem archive export-circulation`
-writes the same numbers as CSV; an archive without a circulation has no such dataset and
+writes the same numbers as CSV, on either tier; an archive without a circulation has no such dataset and
 both tools refuse it by name.
 
 Usage: pv_loop_plot_test.py PATH/TO/fiberfem SOURCE_DIR
@@ -74,6 +74,18 @@ def main():
         res = subprocess.run([sys.executable, script, bare, os.path.join(d, "x.png")], capture_output=True, text=True)
         assert res.returncode != 0 and "no 'circulation' section" in (res.stderr + res.stdout), res
         assert not os.path.exists(os.path.join(d, "x.png"))
+        # The accurate tier (lv-beat.yaml's cavity as the LV, a neo-Hookean law, small
+        # strain): its archive carries the circulation as the real-time tier's does.
+        acc_report, acc_archive = os.path.join(d, "acc.json"), os.path.join(d, "acc.h5")
+        subprocess.run([fiberfem, "run", os.path.join(src, "configs/scenes/lv-beat.yaml"), "--set", "mesh.refine=0.5",
+                        "--set", "solver.until=0.2", "--set", "contraction.peak_tension=500.0", "--set",
+                        "regions[0].material={law: neo_hookean, E: 40000.0, nu: 0.3, density: 1060.0}", "--set",
+                        "circulation={ventricles: {left: lv}, scale: {pressure: 0.00125, volume: 0.015}}",
+                        "--report", acc_report, "--archive", acc_archive], check=True, capture_output=True)
+        with open(acc_report, encoding="utf-8") as f:
+            acc = json.load(f)
+        assert acc["dynamic"]["tier"] == "accurate", acc["dynamic"]
+        check_archive(fiberfem, acc_archive, acc, d)
         # An archive of a run without a circulation: no /frames/circulation, clear errors.
         plain = os.path.join(d, "plain.h5")
         subprocess.run([fiberfem, "run", os.path.join(src, "configs/scenes/heart.yaml"), "--until", "0.05", "--archive", plain],
