@@ -259,7 +259,8 @@ int replay(const ReplayOptions& options, std::ostream& out) {
     out << "fiberfem replay: " << e.what() << "\n";
     return 1;
   }
-  if (!p.header().circulation_columns.empty()) bus->enable_circulation();
+  if (!p.header().circulation_columns.empty())
+    if (const std::string refused = bus->enable_circulation(); !refused.empty()) out << "fiberfem replay: " << refused << "\n";
   bus->publish_topology(p.topology());
   Controls c;
   c.paused = options.paused, c.loop = options.loop, c.rate = options.rate;

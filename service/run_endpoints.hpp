@@ -49,9 +49,11 @@ class RunEndpoints {
   void publish_status(const StatusData& s);
   /// Creates the circulation writer (a run with a circulation; without one the run
   /// publishes nothing on that topic). Call it before the first state, so that readers
-  /// are matched by the time samples come.
-  void enable_circulation();
-  /// The circulation of the state published as `frame` (creates the writer if need be).
+  /// are matched by the time samples come. @return "" or, when DDS Security's access
+  /// control refuses the writer, why (the run goes on without publishing its circulation).
+  std::string enable_circulation();
+  /// The circulation of the state published as `frame` (creates the writer if need be;
+  /// nothing when it was refused).
   void publish_circulation(unsigned long frame, const core::circulation::Snapshot& s);
   /// Takes the commands addressed to this run, calls `apply(kind, args, id)` for each and
   /// acknowledges it with the frame and parameter version `stamp()` gives after it. A
@@ -91,6 +93,7 @@ class RunEndpoints {
   dds::Writer<fiberfem_CommandAck> ack_;
   dds::Reader<fiberfem_Command> commands_;
   std::optional<dds::Writer<fiberfem_CirculationState>> circulation_;
+  std::string circulation_refused_;
 };
 
 /// "<scene>-<host>-<pid>".

@@ -37,7 +37,8 @@ class ServeLoop {
         states_(o.publish_hz, Clock::now()) {
     const core::TetMesh& mesh = run.engine().model().mesh;
     if (o.surface_only) state_nodes_ = mesh.boundary_nodes();
-    if (run_.circulation()) bus_.enable_circulation();
+    if (run_.circulation())
+      if (const std::string refused = bus_.enable_circulation(); !refused.empty()) out_ << "fiberfem serve: " << refused << "\n";
     publish_topology();
   }
 

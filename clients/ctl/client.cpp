@@ -203,12 +203,20 @@ std::optional<State> Client::next_state(const std::string& run_id, std::chrono::
   return std::nullopt;
 }
 
-void Client::listen_circulation() {
-  if (!circulation_reader_) circulation_reader_.emplace(pp_);
+bool Client::listen_circulation() {
+  if (circulation_reader_ || !circulation_refused_.empty()) return circulation_reader_.has_value();
+  try {
+    circulation_reader_.emplace(pp_);
+  } catch (const dds::DdsError& e) {
+    if (e.code() != DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) throw;
+    circulation_refused_ = std::string("this identity may not read the circulation (its permissions do not grant ") +
+                           "fiberfem_circulation: remake them with scripts/make_security.sh): " + e.what();
+  }
+  return circulation_reader_.has_value();
 }
 
 std::vector<Circulation> Client::circulation(const std::string& run_id, std::chrono::milliseconds wait, long after_frame) {
-  listen_circulation();
+  if (!listen_circulation()) return {};
   const auto deadline = Clock::now() + wait;
   std::vector<Circulation> out;
   do {

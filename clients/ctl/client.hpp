@@ -85,7 +85,11 @@ class Client {
   std::vector<Circulation> circulation(const std::string& run_id, std::chrono::milliseconds wait, long after_frame = -1);
   /// Makes the circulation reader now (it then matches the services' writers while the
   /// caller looks for its run; samples are volatile: none written before it matched arrive).
-  void listen_circulation();
+  /// @return false when DDS Security's access control refuses it (circulation_refused()
+  /// says why; circulation() then gives nothing).
+  bool listen_circulation();
+  /// Why the circulation reader was refused, or "".
+  const std::string& circulation_refused() const { return circulation_refused_; }
   /// Sends a command and waits for its acknowledgement, writing it again under the same id
   /// every kResendAfter without one (a command written just before the service had
   /// discovered this client is not delivered; the service applies an id once and answers
@@ -131,6 +135,7 @@ class Client {
   std::optional<dds::Reader<fiberfem_MeshState>> state_reader_;
   std::optional<dds::Reader<fiberfem_MeshTopology>> topology_reader_;
   std::optional<dds::Reader<fiberfem_CirculationState>> circulation_reader_;
+  std::string circulation_refused_;
   std::map<std::string, RunStatus> runs_;  // newest status per run
   std::map<std::string, dds_guid_t> participants_;  // the participant of each run (from its newest status writer)
   std::map<std::string, Clock::time_point> seen_;   // when each run's newest status arrived

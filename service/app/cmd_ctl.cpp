@@ -133,7 +133,8 @@ int run_ctl(const std::string& what, CtlArgs& a) {
   clients::CycleScript script;
   if (what == "play") script = clients::load_cycle(a.script);
   Client client;
-  if (what == "echo" && a.circulation) client.listen_circulation();  // matched while the run is resolved
+  if (what == "echo" && a.circulation && !client.listen_circulation())  // matched while the run is resolved
+    throw clients::NotPermitted(client.circulation_refused());
   if (what == "list") {
     const auto runs = client.discover(milliseconds(static_cast<long>(a.wait_s * 1000)));
     if (runs.empty()) {

@@ -136,7 +136,8 @@ class LiveCirculation {
 // waits for the renderer: states it publishes while a frame is drawn are skipped).
 Feed live_feed(const RenderArgs& a) {
   auto client = std::make_shared<clients::Client>();
-  client->listen_circulation();  // matched while the run is looked for
+  const bool circulation_readable = client->listen_circulation();  // matched while the run is looked for
+  if (!circulation_readable) std::printf("render: no pressure-volume inset: %s\n", client->circulation_refused().c_str());
   const std::string run = client->resolve_run(a.run_id, 20s);
   const auto topo = client->topology(run, 20s);
   if (!topo) throw std::runtime_error("no topology from run '" + run + "'");
@@ -153,7 +154,7 @@ Feed live_feed(const RenderArgs& a) {
   f.frame_dt_s = st && st->dt_s > 0 ? st->dt_s : 1.0 / 30;
   auto states = std::make_shared<LiveStates>(client, a.run_id.empty() ? run : a.run_id, *topo);
   auto circulation = std::make_shared<LiveCirculation>(client);
-  if (circulation->published(run, 2500ms)) f.circulation = [circulation] { return circulation->take(); };
+  if (circulation_readable && circulation->published(run, 2500ms)) f.circulation = [circulation] { return circulation->take(); };
   f.next = [states, circulation, rest = f.mesh->rest_positions(), state_nodes = topo->state_nodes, until = a.until, max_frames = a.live_frames,
             shown = 0L](core::Positions& x, std::vector<double>& act, double& t, long& step) mutable {
     if (max_frames > 0 && shown >= max_frames) return false;

@@ -21,10 +21,12 @@ import os
 import subprocess
 import sys
 import tempfile
+import time
 
 import h5py
 import matplotlib.image as mpimg
 import numpy as np
+from fiberfem_client import Client
 
 W, H = 480, 270
 MARGIN = max(6, H // 40)
@@ -92,16 +94,30 @@ def main():
         no_circ = render(fiberfem, os.path.join(src, "configs/scenes/heart.yaml"), os.path.join(d, "heart"), "--steps", "10",
                          "--every", "10")
         assert red(no_circ[-1][BOX]).sum() == 0 and blue(no_circ[-1][BOX]).sum() == 0
-        # Live: a served run, three frames from the bus.
+        # Live: a served run, three frames from the bus. It starts paused (publishing its state
+        # and circulation once a second); the renderer joins, draws the first, then it runs.
         run = f"pv-live-{os.getpid()}"
-        serve = subprocess.Popen([fiberfem, "serve", scene, "--run-id", run, "--until", "30"], stdout=subprocess.DEVNULL,
+        live_dir = os.path.join(d, "live")
+        serve = subprocess.Popen([fiberfem, "serve", scene, "--run-id", run, "--paused"], stdout=subprocess.DEVNULL,
                                  stderr=subprocess.DEVNULL)
         try:
-            live = render(fiberfem, "--live", os.path.join(d, "live"), "--run", run, "--frames", "3")
+            client = Client("pv-inset-test")
+            assert client.resolve_run(run, 30) == run
+            renderer = subprocess.Popen([fiberfem, "render", "--live", "--run", run, "--frames", "3", "--out", live_dir,
+                                         "--width", str(W), "--height", str(H)], stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True)
+            deadline = time.monotonic() + 60
+            while not os.path.exists(os.path.join(live_dir, "frame-00000.png")) and renderer.poll() is None \
+                    and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert client.send(run, "resume").accepted
+            out, _ = renderer.communicate(timeout=120)
+            assert renderer.returncode == 0, out
         finally:
             serve.terminate()
             serve.wait(timeout=30)
-        assert len(live) >= 1 and red(live[-1][BOX]).sum() > 10, (len(live), red(live[-1][BOX]).sum())
+        live = frames(live_dir)
+        assert len(live) == 3 and red(live[-1][BOX]).sum() > 10, (len(live), red(live[-1][BOX]).sum(), out)
     print("pv inset: ok")
 
 

@@ -118,9 +118,17 @@ class Client:
         self._status = DataReader(self.dp, t["status"], qos=READER_QOS["status"])
         self._state = DataReader(self.dp, t["state"], qos=READER_QOS["state"])
         self._topology = DataReader(self.dp, t["topology"], qos=READER_QOS["topology"])
-        self._circulation = DataReader(
-            self.dp, Topic(self.dp, TOPIC_NAMES["circulation"], CirculationState, qos=QOS["circulation"]),
-            qos=READER_QOS["circulation"])
+        # Absent when access control refuses it (permissions made before the topic existed):
+        # everything else still works, the circulation calls raise with the reason.
+        self.circulation_refused = ""
+        try:
+            self._circulation = DataReader(
+                self.dp, Topic(self.dp, TOPIC_NAMES["circulation"], CirculationState, qos=QOS["circulation"]),
+                qos=READER_QOS["circulation"])
+        except DDSException as e:
+            self._circulation = None
+            self.circulation_refused = ("this identity may not read the circulation (its permissions do not grant "
+                                        f"fiberfem_circulation: remake them with scripts/make_security.sh): {e}")
         # The command path, absent when access control refuses it (an observer identity in
         # secure mode, docs/security.md): watching still works, send raises.
         self.commands_refused = ""
@@ -233,6 +241,8 @@ class Client:
         """The CirculationState samples of run_id with a frame after after_frame that have
         arrived, oldest first, waiting up to wait_s for one; [] when none came (a run
         without a circulation publishes none). SI units, the members of idl/circulation.idl."""
+        if self._circulation is None:
+            raise FiberfemError(self.circulation_refused)
         end = time.monotonic() + wait_s
         while True:
             got = [c for c in self._circulation.take(N=256)
