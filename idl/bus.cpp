@@ -10,6 +10,9 @@
 //             keep all: the acks of every client of a run share one instance, and a client
 //             that took its samples late under a flood of others' would lose its own
 //   status    reliable, volatile, keep-last 1, deadline, liveliness lease
+//   circulation  reliable, volatile, keep-last 16 (readers 256): small samples, one per
+//             published state; a reader polling a few times a second still gets every
+//             one (a whole pressure-volume loop); no deadline (the state's covers the run)
 
 #include "idl/bus.hpp"
 
@@ -27,6 +30,9 @@ constexpr dds_duration_t kLivelinessLease = DDS_SECS(3);
 constexpr int32_t kAckHistory = 1024;
 // Acks a client that joins late receives.
 constexpr int32_t kAckLateJoiners = 64;
+// Circulation samples the writer keeps for a slow reader, and a reader keeps untaken.
+constexpr int32_t kCirculationHistory = 16;
+constexpr int32_t kCirculationReaderHistory = 256;
 
 struct Qos {
   dds_qos_t* q = dds_create_qos();
@@ -60,6 +66,10 @@ void set_qos(dds_qos_t* q, Topic t) {
       dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
       dds_qset_deadline(q, kStatusDeadline);
       dds_qset_liveliness(q, DDS_LIVELINESS_AUTOMATIC, kLivelinessLease);
+      break;
+    case Topic::circulation:
+      dds_qset_durability(q, DDS_DURABILITY_VOLATILE);
+      dds_qset_history(q, DDS_HISTORY_KEEP_LAST, kCirculationHistory);
       break;
   }
 }
@@ -98,6 +108,7 @@ const char* topic_name(Topic t) {
     case Topic::command: return "fiberfem_command";
     case Topic::ack: return "fiberfem_command_ack";
     case Topic::status: return "fiberfem_status";
+    case Topic::circulation: return "fiberfem_circulation";
   }
   return "?";
 }
@@ -122,6 +133,7 @@ dds_entity_t create_reader(const Participant& pp, dds_entity_t topic, Topic t) {
   set_qos(qos.q, t);
   if (t == Topic::state || t == Topic::status) dds_qset_deadline(qos.q, DDS_INFINITY);  // readers ask none
   if (t == Topic::ack) dds_qset_history(qos.q, DDS_HISTORY_KEEP_ALL, DDS_LENGTH_UNLIMITED);
+  if (t == Topic::circulation) dds_qset_history(qos.q, DDS_HISTORY_KEEP_LAST, kCirculationReaderHistory);
   return check(dds_create_reader(pp.get(), topic, qos.q, nullptr), (std::string("dds_create_reader on ") + topic_name(t)).c_str());
 }
 

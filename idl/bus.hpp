@@ -1,11 +1,12 @@
 #pragma once
 /// @file The one DDS wrapper (STYLE.md habit 9): RAII handles over the Cyclone DDS C API,
-/// the five fiberfem topics and their QoS, chosen here and nowhere else (docs/dds.md).
+/// the six fiberfem topics and their QoS, chosen here and nowhere else (docs/dds.md).
 ///
 /// Samples are the idlc-generated C structs (idl/*.idl). Writers take them filled with
 /// pointers into caller-owned buffers (no copy); readers lend them to a callback and
 /// return the loan after it.
 
+#include "circulation.h"
 #include "control.h"
 #include "mesh.h"
 #include "status.h"
@@ -64,7 +65,7 @@ class Participant {
 };
 
 /// The fiberfem topics. Names and QoS live in bus.cpp (docs/dds.md has the table).
-enum class Topic { topology, state, command, ack, status };
+enum class Topic { topology, state, command, ack, status, circulation };
 
 /// Traits of each sample type: its topic and descriptor.
 template <class T>
@@ -93,6 +94,11 @@ template <>
 struct TopicOf<fiberfem_ServiceStatus> {
   static constexpr Topic topic = Topic::status;
   static const dds_topic_descriptor_t* desc() { return &fiberfem_ServiceStatus_desc; }
+};
+template <>
+struct TopicOf<fiberfem_CirculationState> {
+  static constexpr Topic topic = Topic::circulation;
+  static const dds_topic_descriptor_t* desc() { return &fiberfem_CirculationState_desc; }
 };
 
 /// DDS topic name of a topic ("fiberfem_mesh_state", ...).

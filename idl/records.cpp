@@ -2,6 +2,8 @@
 
 #include "idl/bus.hpp"
 
+#include <stdexcept>
+
 namespace fiberfem::dds {
 namespace {
 
@@ -71,6 +73,54 @@ void with_sample(const Status& record, const std::function<void(const fiberfem_S
   FIBERFEM_STATUS_STRINGS(FIBERFEM_BORROW_STR)
   write(s);
 }
+
+// The circulation's members after run_id and frame, in IDL order (the snapshot's columns).
+#define FIBERFEM_CIRCULATION_MEMBERS(X) \
+  X(time_s) X(la_pressure_pa) X(la_volume_m3) X(systemic_arterial_pressure_pa) \
+  X(systemic_arterial_flow_m3_s) X(mitral_flow_m3_s) X(lv_pressure_pa) X(lv_volume_m3) \
+  X(systemic_venous_pressure_pa) X(systemic_venous_flow_m3_s) X(aortic_flow_m3_s) X(ra_pressure_pa) \
+  X(ra_volume_m3) X(pulmonary_arterial_pressure_pa) X(pulmonary_arterial_flow_m3_s) \
+  X(tricuspid_flow_m3_s) X(rv_pressure_pa) X(rv_volume_m3) X(pulmonary_venous_pressure_pa) \
+  X(pulmonary_venous_flow_m3_s) X(pulmonary_valve_flow_m3_s) X(pressure_iterations) \
+  X(blood_volume_m3) X(beat) X(beat_start_s) X(lv_end_diastolic_volume_m3) \
+  X(lv_end_systolic_volume_m3) X(lv_stroke_volume_m3) X(lv_ejection_fraction) \
+  X(lv_peak_pressure_pa) X(lv_end_diastolic_pressure_pa) X(rv_end_diastolic_volume_m3) \
+  X(rv_end_systolic_volume_m3) X(rv_stroke_volume_m3) X(rv_ejection_fraction) \
+  X(rv_peak_pressure_pa) X(rv_end_diastolic_pressure_pa) X(systemic_arterial_max_pa) \
+  X(systemic_arterial_min_pa) X(pulmonary_arterial_max_pa) X(pulmonary_arterial_min_pa)
+
+const std::vector<std::string>& circulation_members() {
+#define FIBERFEM_NAME(f) #f,
+  static const std::vector<std::string> names{FIBERFEM_CIRCULATION_MEMBERS(FIBERFEM_NAME)};
+#undef FIBERFEM_NAME
+  return names;
+}
+
+Circulation to_record(const fiberfem_CirculationState& s) {
+  const std::vector<double> numbers{
+#define FIBERFEM_NUMBER(f) static_cast<double>(s.f),
+      FIBERFEM_CIRCULATION_MEMBERS(FIBERFEM_NUMBER)
+#undef FIBERFEM_NUMBER
+  };
+  return {str(s.run_id), s.frame, core::circulation::from_columns(circulation_members(), numbers.data())};
+}
+
+void with_sample(const Circulation& record, const std::function<void(const fiberfem_CirculationState&)>& write) {
+  static const bool same_order = circulation_members() == core::circulation::snapshot_columns();
+  if (!same_order) throw std::logic_error("idl/circulation.idl's members differ from core::circulation::snapshot_columns()");
+  const std::vector<double> numbers = core::circulation::to_columns(record.snapshot);
+  std::string run_id = record.run_id;
+  fiberfem_CirculationState s{};
+  s.run_id = run_id.data();
+  s.frame = record.frame;
+  size_t i = 0;
+#define FIBERFEM_SET_NUMBER(f) s.f = static_cast<decltype(s.f)>(numbers[i++]);
+  FIBERFEM_CIRCULATION_MEMBERS(FIBERFEM_SET_NUMBER)
+#undef FIBERFEM_SET_NUMBER
+  write(s);
+}
+
+#undef FIBERFEM_CIRCULATION_MEMBERS
 
 #undef FIBERFEM_COPY
 #undef FIBERFEM_COPY_STR

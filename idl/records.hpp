@@ -1,8 +1,12 @@
 #pragma once
-/// @file The run's topology and status as C++ values, one record each for the services
-/// that publish them and the clients that read them, and their conversions to and from
-/// the wire types of idl/mesh.idl and idl/status.idl (field for field, same names).
+/// @file The run's topology, status and circulation as C++ values, one record each for the
+/// services that publish them and the clients that read them, and their conversions to and
+/// from the wire types of idl/mesh.idl, idl/status.idl and idl/circulation.idl (field for
+/// field, same names).
 
+#include "core/circulation/snapshot.hpp"
+
+#include "circulation.h"
 #include "mesh.h"
 #include "status.h"
 
@@ -50,13 +54,26 @@ struct Status {
   uint64_t recorded_frames = 0;
 };
 
+/// fiberfem::CirculationState (idl/circulation.idl): a run's circulation at one frame.
+struct Circulation {
+  std::string run_id;
+  uint64_t frame = 0;  ///< The state's frame it goes with.
+  core::circulation::Snapshot snapshot;
+};
+
+/// The wire type's members after run_id and frame, in IDL order: equal to
+/// core::circulation::snapshot_columns() (tests/idl/circulation_record_test.cpp).
+const std::vector<std::string>& circulation_members();
+
 /// Copies a received sample out of DDS.
 Topology to_record(const fiberfem_MeshTopology& sample);
 Status to_record(const fiberfem_ServiceStatus& sample);
+Circulation to_record(const fiberfem_CirculationState& sample);
 
 /// Calls `write` with a sample whose strings and sequences borrow `record`'s buffers (valid
 /// during the call only).
 void with_sample(const Topology& record, const std::function<void(const fiberfem_MeshTopology&)>& write);
 void with_sample(const Status& record, const std::function<void(const fiberfem_ServiceStatus&)>& write);
+void with_sample(const Circulation& record, const std::function<void(const fiberfem_CirculationState&)>& write);
 
 }  // namespace fiberfem::dds

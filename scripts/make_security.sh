@@ -148,8 +148,8 @@ cat >"$out/governance.xml" <<'EOF'
 EOF
 
 # Permissions: one grant per identity, by role.
-#   service   publishes topology, state, status, acks; subscribes to commands
-#   observer  subscribes to topology, state, status
+#   service   publishes topology, state, status, acks, circulation; subscribes to commands
+#   observer  subscribes to topology, state, status, circulation
 #   operator  the observer's, plus publishes commands and subscribes to acks
 topics_xml() {
   local t
@@ -176,15 +176,15 @@ EOF
     printf '      <allow_rule>\n        <domains><id_range><min>0</min><max>230</max></id_range></domains>\n'
     case "$role" in
       service)
-        rule_xml publish fiberfem_mesh_topology fiberfem_mesh_state fiberfem_status fiberfem_command_ack
+        rule_xml publish fiberfem_mesh_topology fiberfem_mesh_state fiberfem_status fiberfem_command_ack fiberfem_circulation
         rule_xml subscribe fiberfem_command
         ;;
       observer)
-        rule_xml subscribe fiberfem_mesh_topology fiberfem_mesh_state fiberfem_status
+        rule_xml subscribe fiberfem_mesh_topology fiberfem_mesh_state fiberfem_status fiberfem_circulation
         ;;
       operator)
         rule_xml publish fiberfem_command
-        rule_xml subscribe fiberfem_mesh_topology fiberfem_mesh_state fiberfem_status fiberfem_command_ack
+        rule_xml subscribe fiberfem_mesh_topology fiberfem_mesh_state fiberfem_status fiberfem_command_ack fiberfem_circulation
         ;;
       *) die "identity $name has an unknown role '$role' in $dir/role" ;;
     esac

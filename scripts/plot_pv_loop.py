@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Pressure-volume loops from a run report (`fiberfem run --report FILE` of a scene with a
-`circulation` key, docs/circulation.md): each ventricle's pressure against its volume,
+`circulation` key, docs/circulation.md) or from a run archive (`--archive RUN.h5`, its
+`/frames/circulation`, docs/archive.md): each ventricle's pressure against its volume,
 one curve per beat (the last ones darkest), in mL and mmHg.
 
-Usage: plot_pv_loop.py REPORT.json OUT.png [--beats N]   (N: the last N beats, default all)
+Usage: plot_pv_loop.py REPORT.json|RUN.h5 OUT.png [--beats N]   (N: the last N beats, default all)
 """
 import argparse
 import json
@@ -31,8 +32,31 @@ def load_loops(report_path):
     return circ, steps, beat_of
 
 
+def load_archive_loops(h5_path):
+    """The same from an archive: its per-frame columns, each frame's beat being the archive's
+    last complete beat plus one (a beat closes at the first frame of the next), and the
+    coupled ventricles from the archived scene."""
+    import h5py
+    import numpy as np
+    import yaml
+
+    with h5py.File(h5_path, "r", libver="latest", swmr=True) as f:
+        if "frames/circulation" not in f:
+            raise SystemExit(f"{h5_path}: no frames/circulation (the run had no circulation key)")
+        n = min(f["frames/step"].shape[0], f["frames/circulation"].shape[0])
+        names = json.loads(f["frames/circulation"].attrs["columns"])
+        table = f["frames/circulation"][:n]
+        scene = yaml.safe_load(bytes(f["scene/yaml"][()]).decode())
+    steps = {name: table[:, i].tolist() for i, name in enumerate(names)}
+    beat_of = [int(b) + 1 for b in np.asarray(steps["beat"])]
+    coupled = {"left": "lv", "right": "rv"}
+    ventricles = (scene.get("circulation") or {}).get("ventricles") or {}
+    return {"coupled_cavities": [coupled[k] for k in ventricles if k in coupled]}, steps, beat_of
+
+
 def plot(report_path, out_path, last_beats=None):
-    circ, steps, beat_of = load_loops(report_path)
+    archive = report_path.endswith((".h5", ".hdf5"))
+    circ, steps, beat_of = load_archive_loops(report_path) if archive else load_loops(report_path)
     beats = sorted(set(beat_of))
     if last_beats:
         beats = beats[-last_beats:]
@@ -57,7 +81,7 @@ def plot(report_path, out_path, last_beats=None):
 
 def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("report")
+    ap.add_argument("report", help="a run report (JSON) or a run archive (.h5)")
     ap.add_argument("out")
     ap.add_argument("--beats", type=int, default=None)
     a = ap.parse_args(argv)

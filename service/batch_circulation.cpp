@@ -1,5 +1,7 @@
 #include "service/batch_circulation.hpp"
 
+#include "core/circulation/snapshot.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -32,39 +34,16 @@ void CirculationSeries::push(const std::string& column, double value) {
 
 void CirculationSeries::add(const Engine& engine) {
   if (!enabled_) return;
-  const cc::Parameters& p = engine.model().circulation.parameters;
+  const cc::Coupling& coupling = engine.model().circulation;
   const cc::State& s = *engine.circulation_state();
-  const cc::Observables o = cc::observe(p, s);
-  // The coupled ventricles' volumes are the mesh's (equal to the loop's to the coupling's
-  // tolerance); the other chambers' are the loop's.
-  double volume[4] = {s.volume_m3[0], s.volume_m3[1], s.volume_m3[2], s.volume_m3[3]};
-  const auto& cavities = engine.model().circulation.cavities;
-  for (size_t k = 0; k < cavities.size(); ++k) volume[cavities[k].chamber] = engine.coupled_cavity_volumes()[k];
-  static const char* const chambers[4] = {"la", "lv", "ra", "rv"};  // by ChamberId
-  static const char* const compartments[4] = {"systemic_arterial", "systemic_venous", "pulmonary_arterial",
-                                              "pulmonary_venous"};  // by CompartmentId
-  static const char* const valves[4] = {"mitral", "aortic", "tricuspid", "pulmonary_valve"};  // by ValveId
-  push("time_s", s.time_s);
-  for (int i = 0; i < 4; ++i) {
-    push(std::string(chambers[i]) + "_pressure_pa", o.chamber_pa[static_cast<size_t>(i)]);
-    push(std::string(chambers[i]) + "_volume_m3", volume[i]);
-    push(std::string(compartments[i]) + "_pressure_pa", s.pressure_pa[static_cast<size_t>(i)]);
-    push(std::string(compartments[i]) + "_flow_m3_s", s.flow_m3_s[static_cast<size_t>(i)]);
-    push(std::string(valves[i]) + "_flow_m3_s", o.valve_m3_s[static_cast<size_t>(i)]);
-  }
-  push("pressure_iterations", s.time_s > 0 ? engine.circulation_iterations() : 0);
+  const int iterations = s.time_s > 0 ? engine.circulation_iterations() : 0;
+  const cc::Snapshot snap = cc::observe_snapshot(coupling, s, engine.coupled_cavity_volumes(), iterations);
+  const std::vector<double> numbers = cc::to_columns(snap);
+  for (size_t c = 0; c < cc::kStepColumns; ++c) push(cc::snapshot_columns()[c], numbers[c]);
   iterations_ += engine.circulation_iterations();
   max_iterations_ = std::max(max_iterations_, engine.circulation_iterations());
-  max_drift_m3_ = std::max(max_drift_m3_, std::abs(cc::total_volume(p, s) - initial_blood_m3_));
-  cc::Sample sample;
-  sample.time_s = s.time_s;
-  sample.volume_m3[0] = volume[cc::lv];
-  sample.volume_m3[1] = volume[cc::rv];
-  sample.pressure_pa[0] = o.chamber_pa[cc::lv];
-  sample.pressure_pa[1] = o.chamber_pa[cc::rv];
-  sample.arterial_pa[0] = s.pressure_pa[cc::ar_sys];
-  sample.arterial_pa[1] = s.pressure_pa[cc::ar_pul];
-  beats_.add(sample);
+  max_drift_m3_ = std::max(max_drift_m3_, std::abs(snap.blood_volume_m3 - initial_blood_m3_));
+  beats_.add(cc::beat_sample(snap));
 }
 
 void CirculationSeries::finish(json& report, std::ostream& out) {
@@ -86,14 +65,7 @@ void CirculationSeries::finish(json& report, std::ostream& out) {
                      {"systemic_arterial_min_pa", b.arterial_min_pa[0]},
                      {"pulmonary_arterial_max_pa", b.arterial_max_pa[1]},
                      {"pulmonary_arterial_min_pa", b.arterial_min_pa[1]}});
-    const cc::VentricleBeat &l = b.ventricle[0], &r = b.ventricle[1];
-    std::snprintf(line, sizeof line,
-                  "circulation: beat %d%s: LV EDV %.4g mL ESV %.4g mL SV %.4g mL EF %.3f peak %.1f mmHg EDP %.1f mmHg; RV SV "
-                  "%.4g mL EF %.3f peak %.1f mmHg; aortic %.0f/%.0f mmHg\n",
-                  b.index, complete ? "" : " (partial)", l.end_diastolic_m3 / cc::kM3PerMl, l.end_systolic_m3 / cc::kM3PerMl,
-                  l.stroke_m3 / cc::kM3PerMl, l.ejection_fraction, l.peak_pa / cc::kPaPerMmHg,
-                  l.end_diastolic_pa / cc::kPaPerMmHg, r.stroke_m3 / cc::kM3PerMl, r.ejection_fraction,
-                  r.peak_pa / cc::kPaPerMmHg, b.arterial_max_pa[0] / cc::kPaPerMmHg, b.arterial_min_pa[0] / cc::kPaPerMmHg);
+    std::snprintf(line, sizeof line, "circulation: beat %d%s: %s\n", b.index, complete ? "" : " (partial)", cc::describe(b).c_str());
     out << line;
   }
   json steps = json::object();

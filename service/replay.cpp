@@ -127,11 +127,13 @@ class Playback {
     return true;
   }
 
+  // The frame's state, and its circulation when the archive has one.
   void publish(RunEndpoints& bus, unsigned version) {
     const archive::Frame f = reader_.frame(index_);
     // Over the archived scene's peaks; in Pa when the scene text gave none.
     const std::vector<double> a = has_peaks_ ? peak_table_.activation(header().regions, f.activation_pa) : f.activation_pa;
     bus.publish_state(static_cast<unsigned long>(f.step), f.time_s, version, f.positions, {}, a);
+    if (f.circulation) bus.publish_circulation(static_cast<unsigned long>(f.step), *f.circulation);
   }
 
  private:
@@ -257,6 +259,8 @@ int replay(const ReplayOptions& options, std::ostream& out) {
     out << "fiberfem replay: " << e.what() << "\n";
     return 1;
   }
+  if (!p.header().circulation_columns.empty())
+    if (const std::string refused = bus->enable_circulation(); !refused.empty()) out << "fiberfem replay: " << refused << "\n";
   bus->publish_topology(p.topology());
   Controls c;
   c.paused = options.paused, c.loop = options.loop, c.rate = options.rate;

@@ -87,6 +87,12 @@ const core::StepReport& RunDriver::step(bool record_failure) {
   control_.before_step();
   last_ = engine().step();
   cavities_valid_ = false;
+  const Engine& e = engine();
+  if (e.circulation_state() && last_.status != core::StepStatus::failed) {
+    circulation_.update(e.model().circulation, *e.circulation_state(), e.coupled_cavity_volumes(), e.circulation_iterations(),
+                        e.dt_s(), /*after_step=*/true);
+    circulation_valid_ = true;
+  }
   if (writer_ && (record_failure || last_.status != core::StepStatus::failed)) record(last_);
   return last_;
 }
@@ -105,6 +111,17 @@ const CavityVolumes& RunDriver::cavity_volumes() {
     cavities_valid_ = true;
   }
   return cavities_;
+}
+
+const core::circulation::Snapshot* RunDriver::circulation() {
+  const Engine& e = engine();
+  if (!e.circulation_state()) return nullptr;
+  // A state not reached by a step here (the start, a resume, a reset or restore command).
+  if (!circulation_valid_ || circulation_.snapshot().time_s != e.circulation_state()->time_s) {
+    circulation_.update(e.model().circulation, *e.circulation_state(), e.coupled_cavity_volumes(), 0, e.dt_s(), /*after_step=*/false);
+    circulation_valid_ = true;
+  }
+  return &circulation_.snapshot();
 }
 
 std::string RunDriver::checkpoint_parameters() const {
@@ -151,7 +168,9 @@ long RunDriver::recorded_frames() const { return writer_ ? writer_->frames() : 0
 
 void RunDriver::record(const core::StepReport& r) {
   const auto t0 = std::chrono::steady_clock::now();
-  writer_->record_frame(engine(), r, {cavity_volumes()});
+  archive::FrameExtras extras{cavity_volumes()};
+  extras.circulation = circulation();
+  writer_->record_frame(engine(), r, extras);
   record_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
 }
 

@@ -8,6 +8,7 @@
 
 #include "service/run_control.hpp"
 
+#include "core/circulation/snapshot.hpp"
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
 
@@ -90,6 +91,9 @@ class RunDriver {
   std::vector<double> activation() const;
   /// The cavity volumes of the current state (measured once per state).
   const CavityVolumes& cavity_volumes();
+  /// The circulation of the current state (pressures, volumes, flows, and the figures of
+  /// the last complete beat this driver stepped through), or nullptr when the scene has none.
+  const core::circulation::Snapshot* circulation();
 
   /// Starts recording into `settings.path`: the header (the running scene), a checkpoint
   /// and the current state as the first frame. `source` is the header's source.
@@ -121,6 +125,8 @@ class RunDriver {
   core::StepReport last_{};
   CavityVolumes cavities_;
   bool cavities_valid_ = false;
+  core::circulation::Monitor circulation_;  // fed every step of a run with a circulation
+  bool circulation_valid_ = false;
   std::unique_ptr<archive::ArchiveWriter> writer_;
   std::string recording_path_;
   std::vector<double> record_ms_;

@@ -64,6 +64,24 @@ void RunEndpoints::publish_status(const StatusData& d) {
   dds::with_sample(mine, [&](const fiberfem_ServiceStatus& m) { status_.write(m); });
 }
 
+std::string RunEndpoints::enable_circulation() {
+  if (circulation_ || !circulation_refused_.empty()) return circulation_refused_;
+  try {
+    circulation_.emplace(pp_);
+  } catch (const dds::DdsError& e) {
+    if (e.code() != DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) throw;
+    circulation_refused_ = std::string("the circulation is not published: ") + e.what() +
+                           " (permissions made before the topic fiberfem_circulation existed: remake them with scripts/make_security.sh)";
+  }
+  return circulation_refused_;
+}
+
+void RunEndpoints::publish_circulation(unsigned long frame, const core::circulation::Snapshot& s) {
+  enable_circulation();  // a run whose engine gained a circulation after the start
+  if (!circulation_) return;
+  dds::with_sample(dds::Circulation{run_id_, frame, s}, [&](const fiberfem_CirculationState& m) { circulation_->write(m); });
+}
+
 void RunEndpoints::write_ack(const std::string& command_id, const std::string& client_id, const Answer& a) {
   std::string cid = command_id, client = client_id, reason = a.reason;
   fiberfem_CommandAck ack{};

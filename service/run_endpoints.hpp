@@ -1,7 +1,8 @@
 #pragma once
 /// @file The DDS side of one run, shared by the live service and the archive replay:
-/// writers of the topology, states, status and acknowledgements and the reader of
-/// commands, all keyed by the run id (docs/dds.md).
+/// writers of the topology, states, status, acknowledgements and (a run with a
+/// circulation) the circulation, and the reader of commands, all keyed by the run id
+/// (docs/dds.md).
 
 #include "core/types.hpp"
 #include "idl/bus.hpp"
@@ -11,6 +12,7 @@
 #include <functional>
 #include <unordered_map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +47,14 @@ class RunEndpoints {
   void publish_state(unsigned long frame, double time_s, unsigned parameter_version, const Eigen::Ref<const core::Positions>& x,
                      const std::vector<int>& nodes, const std::vector<double>& activation);
   void publish_status(const StatusData& s);
+  /// Creates the circulation writer (a run with a circulation; without one the run
+  /// publishes nothing on that topic). Call it before the first state, so that readers
+  /// are matched by the time samples come. @return "" or, when DDS Security's access
+  /// control refuses the writer, why (the run goes on without publishing its circulation).
+  std::string enable_circulation();
+  /// The circulation of the state published as `frame` (creates the writer if need be;
+  /// nothing when it was refused).
+  void publish_circulation(unsigned long frame, const core::circulation::Snapshot& s);
   /// Takes the commands addressed to this run, calls `apply(kind, args, id)` for each and
   /// acknowledges it with the frame and parameter version `stamp()` gives after it. A
   /// command whose id was already handled (one of the last kRememberedCommands) is not
@@ -82,6 +92,8 @@ class RunEndpoints {
   dds::Writer<fiberfem_ServiceStatus> status_;
   dds::Writer<fiberfem_CommandAck> ack_;
   dds::Reader<fiberfem_Command> commands_;
+  std::optional<dds::Writer<fiberfem_CirculationState>> circulation_;
+  std::string circulation_refused_;
 };
 
 /// "<scene>-<host>-<pid>".

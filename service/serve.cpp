@@ -37,6 +37,8 @@ class ServeLoop {
         states_(o.publish_hz, Clock::now()) {
     const core::TetMesh& mesh = run.engine().model().mesh;
     if (o.surface_only) state_nodes_ = mesh.boundary_nodes();
+    if (run_.circulation())
+      if (const std::string refused = bus_.enable_circulation(); !refused.empty()) out_ << "fiberfem serve: " << refused << "\n";
     publish_topology();
   }
 
@@ -105,10 +107,12 @@ class ServeLoop {
     return bus_.handle_commands(apply, stamp, wall_ns(o_.command_budget_ms * 1e-3));
   }
 
+  // The state, and with it the circulation of the same frame (a run with one).
   void publish_state() {
     const Engine& sim = run_.engine();
-    bus_.publish_state(static_cast<unsigned long>(sim.step_count()), sim.time_s(), run_.control().parameter_version(),
-                       sim.positions(), state_nodes_, run_.activation());
+    const unsigned long frame = static_cast<unsigned long>(sim.step_count());
+    bus_.publish_state(frame, sim.time_s(), run_.control().parameter_version(), sim.positions(), state_nodes_, run_.activation());
+    if (const core::circulation::Snapshot* c = run_.circulation()) bus_.publish_circulation(frame, *c);
   }
 
   // The state at most publish_hz (and at least every second, for the deadline); the

@@ -203,6 +203,31 @@ std::optional<State> Client::next_state(const std::string& run_id, std::chrono::
   return std::nullopt;
 }
 
+bool Client::listen_circulation() {
+  if (circulation_reader_ || !circulation_refused_.empty()) return circulation_reader_.has_value();
+  try {
+    circulation_reader_.emplace(pp_);
+  } catch (const dds::DdsError& e) {
+    if (e.code() != DDS_RETCODE_NOT_ALLOWED_BY_SECURITY) throw;
+    circulation_refused_ = std::string("this identity may not read the circulation (its permissions do not grant ") +
+                           "fiberfem_circulation: remake them with scripts/make_security.sh): " + e.what();
+  }
+  return circulation_reader_.has_value();
+}
+
+std::vector<Circulation> Client::circulation(const std::string& run_id, std::chrono::milliseconds wait, long after_frame) {
+  if (!listen_circulation()) return {};
+  const auto deadline = Clock::now() + wait;
+  std::vector<Circulation> out;
+  do {
+    circulation_reader_->take([&](const fiberfem_CirculationState& s, const dds_sample_info_t&) {
+      if (dds::str(s.run_id) == run_id && static_cast<long>(s.frame) > after_frame) out.push_back(dds::to_record(s));
+    });
+    if (!out.empty()) return out;
+  } while (circulation_reader_->wait(left(deadline)) || Clock::now() < deadline);
+  return out;
+}
+
 void Client::await_command_reader(const std::string& run_id, Clock::time_point deadline) {
   // Commands are volatile: write only once the command reader of the run's own participant
   // (known from its newest status) is matched.

@@ -32,6 +32,9 @@ struct State {
 /// The topology of a run, copied out of DDS (idl/records.hpp).
 using Topology = dds::Topology;
 
+/// A run's circulation at one frame, copied out of DDS (idl/records.hpp).
+using Circulation = dds::Circulation;
+
 /// The acknowledgement of a command.
 struct Ack {
   bool accepted = false;
@@ -75,6 +78,18 @@ class Client {
   std::optional<Topology> topology(const std::string& run_id, std::chrono::milliseconds wait);
   /// The next state of `run_id` newer than `after_frame` (any if negative), within `wait`.
   std::optional<State> next_state(const std::string& run_id, std::chrono::milliseconds wait, long after_frame = -1);
+  /// The circulation samples of `run_id` newer than `after_frame` (any if negative), oldest
+  /// first: those that have arrived, waiting up to `wait` for one. Empty when none came (a
+  /// run without a circulation publishes none). The reader is made at the first call
+  /// unless listen_circulation() made it before.
+  std::vector<Circulation> circulation(const std::string& run_id, std::chrono::milliseconds wait, long after_frame = -1);
+  /// Makes the circulation reader now (it then matches the services' writers while the
+  /// caller looks for its run; samples are volatile: none written before it matched arrive).
+  /// @return false when DDS Security's access control refuses it (circulation_refused()
+  /// says why; circulation() then gives nothing).
+  bool listen_circulation();
+  /// Why the circulation reader was refused, or "".
+  const std::string& circulation_refused() const { return circulation_refused_; }
   /// Sends a command and waits for its acknowledgement, writing it again under the same id
   /// every kResendAfter without one (a command written just before the service had
   /// discovered this client is not delivered; the service applies an id once and answers
@@ -119,6 +134,8 @@ class Client {
   std::optional<dds::Reader<fiberfem_CommandAck>> ack_reader_;
   std::optional<dds::Reader<fiberfem_MeshState>> state_reader_;
   std::optional<dds::Reader<fiberfem_MeshTopology>> topology_reader_;
+  std::optional<dds::Reader<fiberfem_CirculationState>> circulation_reader_;
+  std::string circulation_refused_;
   std::map<std::string, RunStatus> runs_;  // newest status per run
   std::map<std::string, dds_guid_t> participants_;  // the participant of each run (from its newest status writer)
   std::map<std::string, Clock::time_point> seen_;   // when each run's newest status arrived

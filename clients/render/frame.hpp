@@ -2,6 +2,7 @@
 /// @file One frame to draw, independent of where it comes from (a running simulator, an
 /// archive, the live bus): borrowed views of the mesh, positions and per-element data.
 
+#include "clients/render/pv_loop.hpp"
 #include "core/mesh.hpp"
 
 #include <string>
@@ -25,6 +26,9 @@ struct FrameView {
   /// Per element Dm^-1 (the simulator's ElementCaches::Dm_inv), 1/m; optional: without
   /// it the renderer uses its own copy for the surface elements (Surface::surface_dm_inv()).
   const std::vector<core::Mat3>* dm_inv = nullptr;
+  /// The pressure-volume loops so far (a run with a circulation), drawn as an inset when
+  /// RenderSettings::pv_inset is on; nullptr or empty: none.
+  const PvLoop* pv_loop = nullptr;
   double time_s = 0;    ///< Simulated time, s (for callers' captions).
   std::string caption;  ///< Drawn at the top left when RenderSettings::caption is on.
 };

@@ -32,6 +32,16 @@ void Image::fill_rect(int x0, int y0, int x1, int y1, Rgba c) {
     }
 }
 
+void Image::draw_line(double x0, double y0, double x1, double y1, Rgba c, int width_px) {
+  const int steps = std::max(1, static_cast<int>(std::ceil(std::max(std::abs(x1 - x0), std::abs(y1 - y0)))));
+  const int lo = -(width_px - 1) / 2, hi = width_px / 2;
+  for (int i = 0; i <= steps; ++i) {
+    const double f = static_cast<double>(i) / steps;
+    const int x = static_cast<int>(std::lround(x0 + f * (x1 - x0))), y = static_cast<int>(std::lround(y0 + f * (y1 - y0)));
+    fill_rect(x + lo, y + lo, x + hi + 1, y + hi + 1, c);
+  }
+}
+
 // Each target pixel [tx, tx+1) covers source columns [tx sx, (tx+1) sx) (sx = src/target);
 // the weights are the overlap lengths, separably in x and y.
 Image downscale(const Image& src, int width, int height) {

@@ -29,6 +29,9 @@ struct Image {
   void blend(int x, int y, Rgba c, double alpha);
   /// Fills the rectangle [x0, x1) x [y0, y1), clipped to the image.
   void fill_rect(int x0, int y0, int x1, int y1, Rgba c);
+  /// A line from (x0, y0) to (x1, y1), `width_px` wide (a square pen stamped along it at
+  /// every pixel step), clipped to the image.
+  void draw_line(double x0, double y0, double x1, double y1, Rgba c, int width_px = 1);
 };
 
 /// `src` shrunk to width x height by averaging the source pixels each target pixel covers

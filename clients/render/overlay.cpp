@@ -22,8 +22,6 @@ std::string field_title(Field field) {
 
 double field_label_value(Field field, double value) { return field == Field::displacement ? 1e3 * value : value; }
 
-namespace {
-
 std::string tick_text(double v, double step) {
   char buf[32];
   if (std::abs(v) < 1e-9 * std::max(1.0, step)) v = 0;  // no "-0"
@@ -34,18 +32,11 @@ std::string tick_text(double v, double step) {
   return buf;
 }
 
-}  // namespace
-
-void draw_colour_bar(Image& image, Font& font, Field field, double lo, double hi, Rgba text) {
-  const int h = image.height, w = image.width;
-  const int bar_h = static_cast<int>(0.55 * h), bar_w = std::max(4, h / 36);
-  const std::string title = field_title(field);
-  const double a = field_label_value(field, lo), b = field_label_value(field, hi);
-  // Ticks at round values: a step of 1, 2, 2.5 or 5 times a power of ten giving 3 to 6
-  // ticks over [a, b], placed by value.
+std::vector<double> round_ticks(double a, double b, double& step) {
+  // A step of 1, 2, 2.5 or 5 times a power of ten giving 3 to 6 ticks over [a, b].
   const double span = b - a;
   const double raw = span / 4, p10 = std::pow(10.0, std::floor(std::log10(raw)));
-  double step = 10 * p10;
+  step = 10 * p10;
   for (double m : {1.0, 2.0, 2.5, 5.0})
     if (m * p10 >= raw * 0.999) {
       step = m * p10;
@@ -53,6 +44,18 @@ void draw_colour_bar(Image& image, Font& font, Field field, double lo, double hi
     }
   std::vector<double> ticks;
   for (double v = std::ceil(a / step - 1e-9) * step; v <= b + 1e-9 * span; v += step) ticks.push_back(v);
+  return ticks;
+}
+
+void draw_colour_bar(Image& image, Font& font, Field field, double lo, double hi, Rgba text) {
+  const int h = image.height, w = image.width;
+  const int bar_h = static_cast<int>(0.55 * h), bar_w = std::max(4, h / 36);
+  const std::string title = field_title(field);
+  const double a = field_label_value(field, lo), b = field_label_value(field, hi);
+  // Ticks at round values, placed by value.
+  const double span = b - a;
+  double step = 1;
+  const std::vector<double> ticks = round_ticks(a, b, step);
   int label_w = 0;
   for (double v : ticks) label_w = std::max(label_w, font.text_width(tick_text(v, step)));
   const int margin = std::max(6, h / 40);

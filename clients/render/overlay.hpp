@@ -7,6 +7,7 @@
 #include "clients/render/image.hpp"
 
 #include <string>
+#include <vector>
 
 namespace fiberfem::render {
 
@@ -23,6 +24,12 @@ void draw_colour_bar(Image& image, Font& font, Field field, double lo, double hi
 
 /// Swatches with "region 0" .. "region n-1" at the right edge (at most 10 listed).
 void draw_region_legend(Image& image, Font& font, int num_regions, Rgba text);
+
+/// Ticks at round values over [a, b] (a < b): a step of 1, 2, 2.5 or 5 times a power of
+/// ten giving 3 to 6 of them, returned in `step`.
+std::vector<double> round_ticks(double a, double b, double& step);
+/// A tick's label with as many decimals as the step needs (2.5 needs one, 0.25 two).
+std::string tick_text(double v, double step);
 
 /// One line of text at the top left.
 void draw_caption(Image& image, Font& font, const std::string& caption, Rgba text);

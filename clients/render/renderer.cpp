@@ -4,6 +4,7 @@
 #include "clients/render/font.hpp"
 #include "clients/render/osmesa_context.hpp"
 #include "clients/render/overlay.hpp"
+#include "clients/render/pv_loop.hpp"
 #include "clients/render/surface.hpp"
 #include "core/corotation.hpp"
 #include "core/element.hpp"
@@ -364,6 +365,7 @@ struct Renderer::Impl {
       else if (settings.field == Field::region) draw_region_legend(image, font, mesh.num_regions(), settings.text);
     }
     if (settings.caption && !f.caption.empty()) draw_caption(image, font, f.caption, settings.text);
+    if (settings.pv_inset && f.pv_loop && !f.pv_loop->empty()) draw_pv_inset(image, font, *f.pv_loop, settings.text);
   }
 };
 

@@ -43,6 +43,9 @@ struct RenderSettings {
   bool per_pixel_lighting = true;
   bool colour_bar = true;            ///< Colour bar (scalar fields) or region legend. Default on.
   bool caption = true;               ///< FrameView::caption at the top left. Default on.
+  /// The pressure-volume inset at the bottom left, for frames that carry a loop
+  /// (FrameView::pv_loop). Default on.
+  bool pv_inset = true;
   Rgba background{255, 255, 255, 255};  ///< Default white.
   Rgba text{40, 40, 40, 255};        ///< Caption and label colour. Default dark grey.
 
@@ -55,7 +58,7 @@ struct RenderTimes {
   double prepare_s = 0;   ///< Field values, colours, normals, vertex arrays (CPU).
   double draw_s = 0;      ///< GL calls and glFinish (llvmpipe rasterises here).
   double readback_s = 0;  ///< Copy (or supersampling reduction) of the colour buffer into the image.
-  double overlay_s = 0;   ///< Colour bar and caption text.
+  double overlay_s = 0;   ///< Colour bar, caption text and the pressure-volume inset.
   double total_s = 0;
 };
 

@@ -1,9 +1,24 @@
 #include "core/circulation/beat_metrics.hpp"
 
+#include "core/circulation/circulation.hpp"
+
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace fiberfem::core::circulation {
+
+std::string describe(const Beat& b) {
+  const VentricleBeat &l = b.ventricle[0], &r = b.ventricle[1];
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "LV EDV %.4g mL ESV %.4g mL SV %.4g mL EF %.3f peak %.1f mmHg EDP %.1f mmHg; RV SV %.4g mL EF %.3f peak %.1f mmHg; "
+                "aortic %.0f/%.0f mmHg",
+                l.end_diastolic_m3 / kM3PerMl, l.end_systolic_m3 / kM3PerMl, l.stroke_m3 / kM3PerMl, l.ejection_fraction,
+                l.peak_pa / kPaPerMmHg, l.end_diastolic_pa / kPaPerMmHg, r.stroke_m3 / kM3PerMl, r.ejection_fraction,
+                r.peak_pa / kPaPerMmHg, b.arterial_max_pa[0] / kPaPerMmHg, b.arterial_min_pa[0] / kPaPerMmHg);
+  return line;
+}
 
 int BeatRecorder::beat_of(double t) const {
   // A sample at the end of a step that ends a beat (t = k T up to round-off) belongs to it.

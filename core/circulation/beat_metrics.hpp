@@ -2,6 +2,7 @@
 /// @file Per-beat figures of a run (EDV, ESV, stroke volume, ejection fraction, peak and
 /// end-diastolic pressures, arterial pressures) from per-step samples.
 
+#include <string>
 #include <vector>
 
 namespace fiberfem::core::circulation {
@@ -31,6 +32,11 @@ struct Beat {
   double arterial_max_pa[2] = {0, 0};  ///< Systolic pressure: systemic, pulmonary.
   double arterial_min_pa[2] = {0, 0};  ///< Diastolic pressure.
 };
+
+/// A beat's figures in the physiology literature's units, one line: "LV EDV 26.22 mL ESV
+/// 14.04 mL SV 12.17 mL EF 0.464 peak 17.3 mmHg EDP 2.9 mmHg; RV SV 12.03 mL EF 0.668 peak
+/// 6.6 mmHg; aortic 17/10 mmHg".
+std::string describe(const Beat& b);
 
 /// Splits samples into beats of `period_s` counted from `origin_s` and reduces each.
 class BeatRecorder {

@@ -1,6 +1,8 @@
-// `fiberfem archive info|recover|export-meshio RUN.h5`: look into a run archive, make a
-// crashed one openable by ordinary readers, export it for meshio (docs/archive.md).
+// `fiberfem archive info|recover|export-meshio|export-circulation RUN.h5`: look into a run
+// archive, make a crashed one openable by ordinary readers, export it for meshio or its
+// circulation as CSV (docs/archive.md).
 
+#include "core/circulation/circulation.hpp"
 #include "service/archive/archive.hpp"
 #include "service/app/commands.hpp"
 
@@ -41,6 +43,17 @@ void print_info(const archive::ArchiveReader& r, std::ostream& out) {
     std::snprintf(line, sizeof line, "frames: %ld, t = %.6g to %.6g s, steps %ld to %ld\n", r.frames(), t.front(), t.back(), s.front(),
                   s.back());
     out << line;
+  }
+  if (!h.circulation_columns.empty() && r.frames() > 0) {  // the last frame's circulation and beat
+    namespace cc = core::circulation;
+    const cc::Snapshot c = *r.frame(r.frames() - 1).circulation;
+    std::snprintf(line, sizeof line,
+                  "circulation: per frame (%zu columns); last frame: LV %.2f mmHg %.3f mL, RV %.2f mmHg %.3f mL, aortic %.2f mmHg\n",
+                  h.circulation_columns.size(), c.chamber_pressure_pa[cc::lv] / cc::kPaPerMmHg, c.chamber_volume_m3[cc::lv] / cc::kM3PerMl,
+                  c.chamber_pressure_pa[cc::rv] / cc::kPaPerMmHg, c.chamber_volume_m3[cc::rv] / cc::kM3PerMl,
+                  c.compartment_pressure_pa[cc::ar_sys] / cc::kPaPerMmHg);
+    out << line;
+    if (c.last_beat.index >= 0) out << "circulation: beat " << c.last_beat.index << ": " << cc::describe(c.last_beat) << "\n";
   }
   const auto cps = r.checkpoints();
   out << "checkpoints: " << cps.size();
@@ -119,6 +132,21 @@ void add_archive_command(CLI::App& app, int& exit_code) {
       exit_code = 0;
     } catch (const std::exception& e) {
       std::cerr << "fiberfem archive xdmf: " << e.what() << "\n";
+      exit_code = 1;
+    }
+  });
+
+  auto* circ = cmd->add_subcommand("export-circulation",
+                                   "Write the circulation of every frame as CSV (step and the archive's columns, SI units)");
+  circ->add_option("archive", a->path, "The run archive (.h5) of a run with a circulation")->required();
+  circ->add_option("out", a->out, "The CSV file to write")->required();
+  circ->callback([a, &exit_code] {
+    try {
+      const long frames = archive::export_circulation_csv(a->path, a->out);
+      std::cout << "export-circulation: " << a->out << ": " << frames << " frames\n";
+      exit_code = 0;
+    } catch (const std::exception& e) {
+      std::cerr << "fiberfem archive export-circulation: " << e.what() << "\n";
       exit_code = 1;
     }
   });

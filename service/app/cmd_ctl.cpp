@@ -5,6 +5,7 @@
 
 #include "clients/ctl/client.hpp"
 #include "clients/ctl/cycle.hpp"
+#include "core/circulation/circulation.hpp"
 #include "service/app/commands.hpp"
 #include "service/stop_signals.hpp"
 
@@ -37,8 +38,8 @@ struct CtlArgs {
   // send / flood
   std::string kind, args = "{}";
   int window = 8;
-  // echo --follow
-  bool follow = false;
+  // echo --follow, --circulation
+  bool follow = false, circulation = false;
   double lost_after_s = 3;
   // play
   std::string script, log_file;
@@ -50,6 +51,47 @@ void print_status_line(const clients::RunStatus& s, bool same_line) {
               s.real_time_factor, s.step_ms, s.solver_iterations, s.solver_residual, s.inverted_elements, s.parameter_version,
               same_line ? "   " : "\n");
   std::fflush(stdout);
+}
+
+// echo --circulation: one line per circulation sample, in mmHg and mL (the wire's SI
+// numbers converted), and the last complete beat's figures.
+void print_circulation(const clients::Circulation& c) {
+  namespace cc = core::circulation;
+  const cc::Snapshot& s = c.snapshot;
+  const auto mmhg = [](double pa) { return pa / cc::kPaPerMmHg; };
+  const auto ml = [](double m3) { return m3 / cc::kM3PerMl; };
+  std::printf("frame %lu t=%.4f s: LV %.2f mmHg %.3f mL, RV %.2f mmHg %.3f mL, LA %.2f mmHg, RA %.2f mmHg, aortic %.2f mmHg, "
+              "pulmonary %.2f mmHg; flow aortic %.2f mL/s, pulmonary %.2f mL/s; %d iterations",
+              static_cast<unsigned long>(c.frame), s.time_s, mmhg(s.chamber_pressure_pa[cc::lv]), ml(s.chamber_volume_m3[cc::lv]),
+              mmhg(s.chamber_pressure_pa[cc::rv]), ml(s.chamber_volume_m3[cc::rv]), mmhg(s.chamber_pressure_pa[cc::la]),
+              mmhg(s.chamber_pressure_pa[cc::ra]), mmhg(s.compartment_pressure_pa[cc::ar_sys]),
+              mmhg(s.compartment_pressure_pa[cc::ar_pul]), ml(s.valve_flow_m3_s[cc::aortic]), ml(s.valve_flow_m3_s[cc::pulmonic]),
+              s.pressure_iterations);
+  if (s.last_beat.index >= 0) std::printf("; beat %d: %s", s.last_beat.index, cc::describe(s.last_beat).c_str());
+  std::printf("\n");
+}
+
+// echo --circulation: every circulation sample of the run (a run without a circulation
+// publishes none: exit 4 after --timeout).
+int echo_circulation(Client& client, const std::string& run, const CtlArgs& a) {
+  const service::StopSignals stop_signals(/*term_too=*/false);
+  const std::chrono::milliseconds timeout(static_cast<long>(a.timeout_s * 1000));
+  long last = -1;
+  for (int shown = 0; !stop_signals.caught() && (a.count == 0 || shown < a.count);) {
+    const auto samples = client.circulation(run, timeout, last);
+    if (samples.empty()) {
+      std::cerr << "fiberfem ctl: no circulation from '" << run << "' for " << a.timeout_s
+                << " s (a run without a circulation publishes none)\n";
+      return 4;
+    }
+    for (const clients::Circulation& c : samples) {
+      if (a.count > 0 && shown >= a.count) break;
+      print_circulation(c);
+      last = static_cast<long>(c.frame), ++shown;
+    }
+    std::fflush(stdout);
+  }
+  return 0;
 }
 
 // echo --follow: frames of a run across service restarts and network cuts (the rule in
@@ -91,6 +133,8 @@ int run_ctl(const std::string& what, CtlArgs& a) {
   clients::CycleScript script;
   if (what == "play") script = clients::load_cycle(a.script);
   Client client;
+  if (what == "echo" && a.circulation && !client.listen_circulation())  // matched while the run is resolved
+    throw clients::NotPermitted(client.circulation_refused());
   if (what == "list") {
     const auto runs = client.discover(milliseconds(static_cast<long>(a.wait_s * 1000)));
     if (runs.empty()) {
@@ -147,6 +191,7 @@ int run_ctl(const std::string& what, CtlArgs& a) {
     if (a.watch && tty) std::printf("\n");
     return 0;
   }
+  if (what == "echo" && a.circulation) return echo_circulation(client, run, a);
   if (what == "echo") {
     const service::StopSignals stop_signals(/*term_too=*/false);
     long last = -1;
@@ -225,6 +270,10 @@ void add_ctl_command(CLI::App& app, int& exit_code) {
   echo->add_flag("--follow", a->follow,
                  "Follow the run across service restarts and network cuts (--run ID: that id; none: the only run, then the only run "
                  "of its scene); --timeout bounds the time with no run to follow");
+  echo->add_flag("--circulation", a->circulation,
+                 "Print the run's circulation instead (pressures in mmHg, volumes in mL, the last beat's figures; a run "
+                 "with a circulation only)")
+      ->excludes("--follow");
   echo->add_option("--lost-after", a->lost_after_s, "With --follow: a run is lost after this long without a status, s")
       ->check(CLI::Range(0.1, 600.0))
       ->capture_default_str();

@@ -91,7 +91,9 @@ void add_render_command(CLI::App& app, int& exit_code) {
   cmd->add_option("--png-level", a->png_level, "PNG compression level, 0 (fastest) to 9 (smallest)")->capture_default_str();
   cmd->add_flag("--no-png", a->no_png, "Write no PNG frames (only --mp4 / --strip)");
   cmd->add_option("--supersample", a->supersample, "Anti-aliasing: draw at K times the size and average down, K in [1, 4]")->capture_default_str();
-  cmd->add_flag("--no-overlay", a->no_overlay, "No colour bar and no caption");
+  cmd->add_flag("--no-overlay", a->no_overlay, "No colour bar, no caption and no pressure-volume inset");
+  cmd->add_flag("--no-pv-loop", a->no_pv_loop,
+                "No pressure-volume inset (drawn at the bottom left for a run with a circulation)");
   cmd->add_flag("--time", a->time, "Print the median time per frame of each phase");
   cmd->callback([cmd, a, &exit_code] { exit_code = render_command(*cmd, *a); });
 }

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 
 namespace fiberfem::app {
@@ -37,12 +38,19 @@ Feed archive_feed(const RenderArgs& a) {
   // has any (an archive stores zeros without a contraction).
   const std::vector<double> last_act = reader->frame(f.total - 1).activation_pa;
   f.has_activation = f.contraction.enabled() || std::any_of(last_act.begin(), last_act.end(), [](double v) { return v > 0; });
+  // The circulation of the frame next() read last (an archive of a run with one).
+  auto circulation = std::make_shared<std::optional<core::circulation::Snapshot>>();
+  if (!h.circulation_columns.empty())
+    f.circulation = [circulation] {
+      return *circulation ? std::vector<core::circulation::Snapshot>{**circulation} : std::vector<core::circulation::Snapshot>{};
+    };
   long i = 0;
   const long stop = a.until > 0 ? static_cast<long>(std::upper_bound(times.begin(), times.end(), a.until + 1e-9) - times.begin()) : f.total;
-  f.next = [reader, contraction = f.contraction, regions = f.mesh->regions(), i, stop](core::Positions& x, std::vector<double>& act,
-                                                                                     double& t, long& step) mutable {
+  f.next = [reader, circulation, contraction = f.contraction, regions = f.mesh->regions(), i, stop](
+               core::Positions& x, std::vector<double>& act, double& t, long& step) mutable {
     if (i >= stop) return false;
     const archive::Frame fr = reader->frame(i++);
+    *circulation = fr.circulation;
     x = fr.positions;
     t = fr.time_s, step = fr.step;
     if (contraction.enabled()) {

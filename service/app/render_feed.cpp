@@ -35,17 +35,23 @@ double median(std::vector<double> v) {
 
 core::Vec3 vec3(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
 
-// The camera: a preset framing `points`, then any explicit key on top. With a colour bar
-// (or legend) at the right edge, the object is framed in the image's left part and the
-// camera moved so that it is centred there.
-render::Camera make_camera(const RenderArgs& a, const core::Positions& points, CLI::App& cmd, bool side_bar) {
+// Shares of the image's width kept free beside the object: for a colour bar (or legend)
+// at the right edge, for the pressure-volume inset at the left.
+struct Reserve {
+  double left = 0, right = 0;
+};
+
+// The camera: a preset framing `points`, then any explicit key on top. With parts of the
+// width reserved, the object is framed in the rest and the camera moved so that it is
+// centred there.
+render::Camera make_camera(const RenderArgs& a, const core::Positions& points, CLI::App& cmd, Reserve reserve) {
   const double aspect = static_cast<double>(a.width) / a.height;
-  const double reserve = side_bar ? 0.12 : 0.0;  // share of the width kept for the bar
-  render::Camera cam = render::frame_points(render::parse_camera_preset(a.camera), points, aspect * (1 - reserve), a.fov, a.margin);
-  if (reserve > 0) {
+  render::Camera cam = render::frame_points(render::parse_camera_preset(a.camera), points,
+                                            aspect * (1 - reserve.left - reserve.right), a.fov, a.margin);
+  if (reserve.left + reserve.right > 0) {
     const core::Vec3 view = cam.target - cam.eye;
     const double half_width = view.norm() * std::tan(0.5 * cam.fov_deg * M_PI / 180) * aspect;  // at the target, m
-    const core::Vec3 shift = view.cross(cam.up).normalized() * reserve * half_width;
+    const core::Vec3 shift = view.cross(cam.up).normalized() * (reserve.right - reserve.left) * half_width;
     cam.target += shift, cam.eye += shift;
   }
   if (!a.target.empty()) {
@@ -86,6 +92,7 @@ render::RenderSettings render_settings(const RenderArgs& a, const Feed& feed) {
   rs.field = a.field.empty() ? (feed.has_activation ? render::Field::activation : render::Field::displacement) : render::parse_field(a.field);
   if (!a.range.empty()) rs.range = std::make_pair(a.range[0], a.range[1]);
   rs.colour_bar = rs.caption = !a.no_overlay;
+  rs.pv_inset = !a.no_overlay && !a.no_pv_loop && static_cast<bool>(feed.circulation);
   rs.smooth = !a.flat;
   rs.per_pixel_lighting = !a.vertex_lighting;
   rs.validate();
@@ -111,6 +118,7 @@ void write_strip(const RenderArgs& a, const render::RenderSettings& rs, const Fe
   ps.width = 2 * a.strip_width;
   ps.height = std::max(16, static_cast<int>(std::lround(ps.width * static_cast<double>(a.height) / a.width)));
   ps.colour_bar = false;
+  ps.pv_inset = false;  // too small a panel for a plot
   ps.supersample = 1;
   ps.font_px = std::max(9, ps.height / 9);
   render::Renderer strip_renderer(*feed.mesh, ps);
@@ -158,9 +166,13 @@ class FrameSelection {
 class Drawing {
  public:
   Drawing(CLI::App& cmd, const RenderArgs& a, const Feed& feed, const render::RenderSettings& rs, double fps)
-      : cmd_(cmd), a_(a), feed_(feed), fps_(fps), side_bar_(!a.no_overlay && rs.field != render::Field::none),
-        renderer_(*feed.mesh, rs) {
-    renderer_.set_camera(make_camera(a, render::surface_points(*feed.mesh), cmd, side_bar_));
+      : cmd_(cmd), a_(a), feed_(feed), fps_(fps), renderer_(*feed.mesh, rs) {
+    if (!a.no_overlay && rs.field != render::Field::none) reserve_.right = 0.12;
+    if (rs.pv_inset) {
+      const render::PvInsetBox box = render::PvInsetBox::in(a.width, a.height);
+      reserve_.left = static_cast<double>(box.x0 + box.size) / a.width;
+    }
+    renderer_.set_camera(make_camera(a, render::surface_points(*feed.mesh), cmd, reserve_));
     prepare_out_dir(a);
     if (!a.mp4.empty()) {
       render::VideoSettings vs;
@@ -171,6 +183,8 @@ class Drawing {
   }
   render::Renderer& renderer() { return renderer_; }
   render::VideoWriter* video() { return video_.get(); }
+  /// The pressure-volume loops traced so far (drawn with every frame from now on).
+  render::PvLoop& pv_loop() { return pv_loop_; }
   long frames() const { return frames_; }
 
   void draw(const core::Positions& x, const std::vector<double>& act, double t, bool sequence) {
@@ -178,13 +192,14 @@ class Drawing {
     frame.activation = act.empty() ? nullptr : &act;
     frame.fibers = &feed_.fibers;
     frame.dm_inv = feed_.dm_inv;
+    frame.pv_loop = &pv_loop_;
     frame.time_s = t;
     const double fps = sequence ? fps_ : 0.0;
     frame.caption = feed_.caption ? feed_.caption(t, fps) : default_caption(feed_, t, fps);
     if (!surface_nodes_.empty()) {  // --fit frame: re-frame on the deformed surface
       core::Positions current(3, static_cast<Eigen::Index>(surface_nodes_.size()));
       for (size_t i = 0; i < surface_nodes_.size(); ++i) current.col(static_cast<Eigen::Index>(i)) = x.col(surface_nodes_[i]);
-      renderer_.set_camera(make_camera(a_, current, cmd_, side_bar_));
+      renderer_.set_camera(make_camera(a_, current, cmd_, reserve_));
     }
     const auto t0 = Clock::now();
     const render::Image& image = renderer_.render(frame);
@@ -219,8 +234,9 @@ class Drawing {
   const RenderArgs& a_;
   const Feed& feed_;
   double fps_;
-  bool side_bar_;
+  Reserve reserve_;
   render::Renderer renderer_;
+  render::PvLoop pv_loop_;
   std::unique_ptr<render::VideoWriter> video_;
   std::vector<int> surface_nodes_;  // --fit frame
   std::vector<double> prepare_, draw_, read_, overlay_, png_, pipe_, total_;
@@ -279,6 +295,12 @@ int render_feed(CLI::App& cmd, const RenderArgs& a, Feed& feed) {
   while (!stop_signals.caught() && feed.next(x, act, t, step)) {
     ++index;
     if (t_first < 0) t_first = t;
+    if (feed.circulation)  // every frame's circulation, drawn or not: the loop is traced whole
+      for (const core::circulation::Snapshot& c : feed.circulation()) {
+        namespace cc = core::circulation;
+        drawing.pv_loop().add(c.chamber_volume_m3[cc::lv], c.chamber_pressure_pa[cc::lv], c.chamber_volume_m3[cc::rv],
+                              c.chamber_pressure_pa[cc::rv]);
+      }
     const int next_panel = static_cast<int>(panels.size());
     if (!a.strip.empty() && next_panel < a.strip_panels && strip_span < HUGE_VAL &&
         t - t_first + 0.5 * feed.frame_dt_s >= next_panel * strip_span / a.strip_panels)

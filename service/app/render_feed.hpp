@@ -3,6 +3,7 @@
 /// run here, an archive, a live run on the bus) is a Feed, drawn by one loop into PNG
 /// frames, an MP4 and a strip of one beat.
 
+#include "core/circulation/snapshot.hpp"
 #include "core/contraction.hpp"
 #include "core/mesh.hpp"
 
@@ -29,6 +30,7 @@ struct RenderArgs {
   std::string run_id;     // --live: the run (default the only one)
   long live_frames = 0;   // --live: stop after this many frames (0: at --until or Ctrl-C)
   bool live = false;
+  bool no_pv_loop = false;  // no pressure-volume inset (a run with a circulation)
   bool fibers = false, no_png = false, time = false, no_overlay = false, force_static = false, last = false, flat = false, vertex_lighting = false;
 };
 
@@ -53,6 +55,10 @@ struct Feed {
   std::function<std::string(double t, double fps)> caption;
   /// The next frame: positions, activation (0..1, may be empty), time, step; false at the end.
   std::function<bool(core::Positions&, std::vector<double>&, double&, long&)> next;
+  /// A run with a circulation: the circulation samples that came with the frame next() just
+  /// gave (and any since the previous frame), oldest first; the renderer traces the
+  /// pressure-volume loop through them. Unset: no circulation (no inset).
+  std::function<std::vector<core::circulation::Snapshot>()> circulation;
   /// Engine time of each step, s, when the feed steps a simulation (--time).
   std::shared_ptr<std::vector<double>> step_s;
   /// Called after the last frame (a summary of the feed's own).

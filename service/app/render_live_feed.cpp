@@ -5,8 +5,10 @@
 
 #include "clients/ctl/client.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -96,12 +98,46 @@ class LiveStates {
   long last_ = -1, skipped_ = 0;
 };
 
+// The circulation samples of the states drawn: those up to the current state's frame,
+// oldest first (samples of later frames wait for their state).
+class LiveCirculation {
+ public:
+  explicit LiveCirculation(std::shared_ptr<clients::Client> client) : client_(std::move(client)) {}
+  // Whether the run publishes a circulation: a sample within `wait` (one comes with every
+  // state, and a service publishes a state at least once a second).
+  bool published(const std::string& run, std::chrono::milliseconds wait) {
+    for (clients::Circulation& c : client_->circulation(run, wait)) pending_.push_back(std::move(c));
+    return !pending_.empty();
+  }
+  void at(const clients::State& s) { run_ = s.run_id, frame_ = static_cast<long>(s.frame); }
+  std::vector<core::circulation::Snapshot> take() {
+    for (clients::Circulation& c : client_->circulation(run_, 0ms)) pending_.push_back(std::move(c));
+    std::vector<core::circulation::Snapshot> out;
+    std::deque<clients::Circulation> later;
+    for (clients::Circulation& c : pending_) {
+      if (c.run_id != run_) continue;  // a run followed before
+      if (static_cast<long>(c.frame) <= frame_) out.push_back(c.snapshot);
+      else later.push_back(std::move(c));
+    }
+    pending_ = std::move(later);
+    return out;
+  }
+
+ private:
+  std::shared_ptr<clients::Client> client_;
+  std::deque<clients::Circulation> pending_;
+  std::string run_;
+  long frame_ = -1;
+};
+
 }  // namespace
 
 // The live bus: the run's topology, then the newest state each time (the service never
 // waits for the renderer: states it publishes while a frame is drawn are skipped).
 Feed live_feed(const RenderArgs& a) {
   auto client = std::make_shared<clients::Client>();
+  const bool circulation_readable = client->listen_circulation();  // matched while the run is looked for
+  if (!circulation_readable) std::printf("render: no pressure-volume inset: %s\n", client->circulation_refused().c_str());
   const std::string run = client->resolve_run(a.run_id, 20s);
   const auto topo = client->topology(run, 20s);
   if (!topo) throw std::runtime_error("no topology from run '" + run + "'");
@@ -117,11 +153,14 @@ Feed live_feed(const RenderArgs& a) {
   f.has_activation = st && st->heart_rate_bpm > 0;
   f.frame_dt_s = st && st->dt_s > 0 ? st->dt_s : 1.0 / 30;
   auto states = std::make_shared<LiveStates>(client, a.run_id.empty() ? run : a.run_id, *topo);
-  f.next = [states, rest = f.mesh->rest_positions(), state_nodes = topo->state_nodes, until = a.until, max_frames = a.live_frames,
+  auto circulation = std::make_shared<LiveCirculation>(client);
+  if (circulation_readable && circulation->published(run, 2500ms)) f.circulation = [circulation] { return circulation->take(); };
+  f.next = [states, circulation, rest = f.mesh->rest_positions(), state_nodes = topo->state_nodes, until = a.until, max_frames = a.live_frames,
             shown = 0L](core::Positions& x, std::vector<double>& act, double& t, long& step) mutable {
     if (max_frames > 0 && shown >= max_frames) return false;
     const std::optional<clients::State> s = states->next();
     if (!s) return false;
+    circulation->at(*s);
     x = rest;
     if (state_nodes.empty()) {
       for (Eigen::Index i = 0; i < x.size() && static_cast<size_t>(i) < s->positions.size(); ++i) x.data()[i] = s->positions[static_cast<size_t>(i)];

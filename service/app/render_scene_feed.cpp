@@ -109,6 +109,8 @@ Feed scene_feed(const RenderArgs& a) {
   if (const core::Simulator* sim = run->engine().real_time()) f.dm_inv = &sim->caches().Dm_inv;
   if (is_static) static_frames(f, sc, run);
   else dynamic_frames(f, run, steps);
+  if (!is_static && run->circulation())  // the state next() gave last
+    f.circulation = [run] { return std::vector<core::circulation::Snapshot>{*run->circulation()}; };
   return f;
 }
 

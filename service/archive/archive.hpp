@@ -4,6 +4,7 @@
 /// crash loses at most the frames since the last flush; periodic double-precision
 /// checkpoints seed bit-for-bit resumes; XDMF sidecars open it in ParaView and meshio.
 
+#include "core/circulation/snapshot.hpp"
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
 #include "service/engine.hpp"
@@ -57,6 +58,9 @@ struct ArchiveOptions {
 struct FrameExtras {
   /// (name, volume in m^3) of each measured cavity, in the scene's measure.cavities order.
   std::vector<std::pair<std::string, double>> cavity_volumes_m3;
+  /// The circulation of the frame's state (service::RunDriver::circulation()); required
+  /// when the engine has a circulation, ignored otherwise.
+  const core::circulation::Snapshot* circulation = nullptr;
 };
 
 /// A command the service applied or refused.
@@ -133,6 +137,9 @@ struct ArchiveHeader {
   double dt_s = 0;                             ///< Time step, s.
   std::vector<std::string> cavity_names;       ///< Columns of Frame::cavity_volumes_m3.
   std::vector<std::string> probe_names;        ///< Columns of Frame::probe_displacements_m.
+  /// Columns of `/frames/circulation` (core::circulation::snapshot_columns() when written by
+  /// this fiberfem); empty when the run had no circulation (or the archive is older).
+  std::vector<std::string> circulation_columns;
   bool has_velocities = false;                 ///< Frames carry velocities.
   bool has_displacement = false;               ///< Frames carry displacements.
   int every_steps = 1;                         ///< Every K-th step was recorded.
@@ -160,6 +167,8 @@ struct Frame {
   std::vector<double> activation_pa;           ///< Per element (stored float32), empty when off.
   std::vector<double> cavity_volumes_m3;       ///< Per cavity.
   std::vector<core::Vec3> probe_displacements_m;  ///< Per probe.
+  /// The circulation after the step (header().circulation_columns not empty), else none.
+  std::optional<core::circulation::Snapshot> circulation;
   /// Kinetic and elastic energy of the state the step started from (StepReport), J.
   double kinetic_energy_j = 0, elastic_energy_j = 0;
   int solver_iterations = 0;                   ///< PCG iterations of the step (0: a starting frame).
@@ -235,6 +244,13 @@ long recover(const std::string& h5_path);
 /// XDMF TimeSeriesReader reads): the rest mesh, and per step point data `positions` and
 /// `displacement` (m), cell data `activation` (Pa).
 void export_meshio(const std::string& h5_path, const std::string& out_xdmf);
+
+/// Writes the circulation of every frame of a run with one as CSV: a header line `step,`
+/// then the archive's column names (SI units, docs/archive.md), a line per frame; numbers
+/// with 17 significant digits (the archive's doubles come back exactly).
+/// @return the frames written. @throws std::runtime_error when the archive has no
+/// circulation or `out_csv` cannot be written.
+long export_circulation_csv(const std::string& h5_path, const std::string& out_csv);
 
 /// `fiberfem` version and the git commit it was built from ("unknown" outside a repo).
 std::string software_version();

@@ -53,7 +53,7 @@ struct ArchiveReader::Impl {
   bool follow = false;
   std::vector<h5::Dataset> per_frame;  // every per-frame dataset (frames = min of rows)
   h5::Dataset step, time, positions, velocities, displacement, activation, cavities, probes, energies, iterations, residual, status,
-      substeps, inverted;
+      substeps, inverted, circulation;
   h5::Dataset cmd_step, cmd_time, cmd_accepted, cmd_end, cmd_bytes;
   h5::Dataset cp_step, cp_time, cp_header_end, cp_header, cp_data_end, cp_data;
   long min_rows(std::vector<h5::Dataset*> ds) {
@@ -125,6 +125,10 @@ ArchiveReader::ArchiveReader(const std::string& path, bool follow) : impl_(std::
   d.probes = open("frames/probe_displacements");
   h.probe_names = names_attribute(d.probes.id(), "names");
   d.energies = open("frames/energies");
+  if (h5::exists(h5::open_group(root, "frames").id(), "circulation")) {  // a run with a circulation
+    d.circulation = open("frames/circulation");
+    h.circulation_columns = names_attribute(d.circulation.id(), "columns");
+  }
   d.iterations = open("frames/solver_iterations");
   d.residual = open("frames/solver_residual");
   d.status = open("frames/status");
@@ -169,6 +173,8 @@ ArchiveReader::ArchiveReader(const std::string& path, bool follow) : impl_(std::
     if (*ds && (ds->dims().size() != 3 || ds->dims()[1] != M || ds->dims()[2] != 3))
       bad("frames/velocities or frames/displacement does not match the mesh's " + std::to_string(M) + " nodes");
   if (d.energies.dims().size() != 2 || d.energies.dims()[1] != 2) bad("frames/energies is not 2 numbers per frame");
+  if (d.circulation && (d.circulation.dims().size() != 2 || d.circulation.dims()[1] != h.circulation_columns.size()))
+    bad("frames/circulation does not have one number per name of its attribute columns");
   refresh();
 }
 
@@ -178,6 +184,7 @@ long ArchiveReader::refresh() {
                                   &d.residual, &d.status, &d.substeps, &d.inverted, &d.step};
   if (d.velocities) ds.push_back(&d.velocities);
   if (d.displacement) ds.push_back(&d.displacement);
+  if (d.circulation) ds.push_back(&d.circulation);
   frames_ = d.min_rows(ds);
   return frames_;
 }
@@ -224,6 +231,7 @@ Frame ArchiveReader::frame(long i) const {
   f.substeps = d.substeps.read_rows<std::int32_t>(k, 1)[0];
   f.inverted_elements = d.inverted.read_rows<std::int32_t>(k, 1)[0];
   f.status = core::to_string(static_cast<core::StepStatus>(d.status.read_rows<std::int8_t>(k, 1)[0]));
+  if (d.circulation) f.circulation = core::circulation::from_columns(header_.circulation_columns, d.circulation.read_rows<double>(k, 1).data());
   return f;
 }
 

@@ -1,4 +1,5 @@
-// Tools on archive files: recover (after a crash of the writer) and export for meshio.
+// Tools on archive files: recover (after a crash of the writer), export for meshio, the
+// circulation as CSV.
 
 #include "service/archive/archive_internal.hpp"
 
@@ -89,5 +90,28 @@ void export_meshio(const std::string& h5_path, const std::string& out_xdmf) {
   write_atomically(out_xdmf, x.str());
 }
 
+
+long export_circulation_csv(const std::string& h5_path, const std::string& out_csv) {
+  const ArchiveReader r(h5_path, /*follow=*/true);
+  const std::vector<std::string>& columns = r.header().circulation_columns;
+  if (columns.empty()) throw std::runtime_error("'" + h5_path + "' has no circulation (its scene has no circulation key, or it was written before archives kept one)");
+  std::ofstream out(out_csv);
+  if (!out) throw std::runtime_error("cannot write '" + out_csv + "'");
+  out << "step";
+  for (const std::string& c : core::circulation::snapshot_columns()) out << "," << c;
+  out << "\n";
+  char number[32];
+  for (long i = 0; i < r.frames(); ++i) {
+    const Frame f = r.frame(i);
+    out << f.step;
+    for (double v : core::circulation::to_columns(*f.circulation)) {
+      std::snprintf(number, sizeof number, "%.17g", v);
+      out << "," << number;
+    }
+    out << "\n";
+  }
+  if (!out) throw std::runtime_error("writing '" + out_csv + "' failed");
+  return r.frames();
+}
 
 }  // namespace fiberfem::archive

@@ -38,7 +38,7 @@ struct WriterFile {
   ArchiveOptions o;
   h5::File file;
   h5::Dataset step, time, positions, velocities, displacement, activation, cavities, probes, energies, iterations, residual, status,
-      substeps, inverted;
+      substeps, inverted, circulation;
   h5::Dataset cmd_step, cmd_time, cmd_accepted, cmd_end, cmd_bytes;
   h5::Dataset cp_step, cp_time, cp_header_end, cp_header, cp_data_end, cp_data;
   int nn = 0, ne = 0;
@@ -252,6 +252,12 @@ ArchiveWriter::ArchiveWriter(ArchiveOptions options, const io::Scene& scene, con
     w.energies = h5::create_extendible<double>(gid, "energies", {2}, kScalarChunk, 0);
     h5::write_attribute(w.energies.id(), "unit", std::string("J"));
     h5::write_attribute(w.energies.id(), "columns", std::string(R"(["kinetic", "elastic"])"));
+    if (engine.circulation_state()) {  // a run with a circulation only: other runs write as before
+      const std::vector<std::string>& columns = core::circulation::snapshot_columns();
+      w.circulation = h5::create_extendible<double>(gid, "circulation", {columns.size()}, kScalarChunk, 0);
+      h5::write_attribute(w.circulation.id(), "columns", join_json(columns));
+      h5::write_attribute(w.circulation.id(), "unit", std::string("SI, by the column name's suffix: _pa Pa, _m3 m^3, _m3_s m^3/s, _s s"));
+    }
     w.iterations = h5::create_extendible<std::int32_t>(gid, "solver_iterations", {}, kScalarChunk, 0);
     w.residual = h5::create_extendible<double>(gid, "solver_residual", {}, kScalarChunk, 0);
     w.status = h5::create_extendible<std::int8_t>(gid, "status", {}, kScalarChunk, 0);
@@ -337,6 +343,11 @@ void ArchiveWriter::record_frame(const service::Engine& sim, const core::StepRep
     probe.insert(probe.end(), u.data(), u.data() + 3);
   }
   w.probes.append(probe.data(), 1);
+  if (w.circulation) {
+    if (!x.circulation) throw std::invalid_argument("archive: the run has a circulation, the frame carries none");
+    const std::vector<double> numbers = core::circulation::to_columns(*x.circulation);
+    w.circulation.append(numbers.data(), 1);
+  }
   const double en[2] = {r.kinetic_energy_j, r.elastic_energy_j};
   w.energies.append(en, 1);
   const std::int32_t it = r.solver_iterations, sub = r.substeps, inv = r.inverted_elements;

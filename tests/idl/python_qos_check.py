@@ -58,6 +58,7 @@ def main():
     # the writer of commands).
     entities = {"topology": ("reader", client._topology), "state": ("reader", client._state),
                 "ack": ("reader", client._ack), "status": ("reader", client._status),
+                "circulation": ("reader", client._circulation),
                 "command": ("writer", client._command)}
     problems = []
     for key, (role, entity) in entities.items():

@@ -80,7 +80,8 @@ int main() {
                       {"state", topic_entities<fiberfem_MeshState>(pp)},
                       {"command", topic_entities<fiberfem_Command>(pp)},
                       {"ack", topic_entities<fiberfem_CommandAck>(pp)},
-                      {"status", topic_entities<fiberfem_ServiceStatus>(pp)}};
+                      {"status", topic_entities<fiberfem_ServiceStatus>(pp)},
+                      {"circulation", topic_entities<fiberfem_CirculationState>(pp)}};
     std::cout << out.dump(2) << "\n";
     return 0;
   } catch (const std::exception& e) {

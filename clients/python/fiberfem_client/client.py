@@ -8,6 +8,8 @@
     for st in c.states(run, count=10):       # positions (n, 3) float32, activation (E,)
         print(st.frame, st.time_s, st.positions[0])
     ack = c.send(run, "set_contraction", {"heart_rate": 90})
+    for cs in c.circulation_states(run, count=10):   # a run with a circulation: SI units
+        print(cs.frame, cs.lv_pressure_pa / 133.322, cs.lv_volume_m3 * 1e6)
 
 The topics and QoS are those of idl/bus.cpp; use the same CYCLONEDDS_URI as
 the service (configs/dds/loopback.xml on one host).
@@ -28,7 +30,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
-from .types import Command, CommandAck, MeshState, MeshTopology, ServiceStatus
+from .types import CirculationState, Command, CommandAck, MeshState, MeshTopology, ServiceStatus
 
 # The QoS of idl/bus.cpp, policy for policy (tests/idl/python_qos_check.py compares them on
 # live entities and fails when they drift; docs/dds.md explains each choice).
@@ -43,14 +45,17 @@ QOS = {
                                         max_instances=-1, max_samples_per_instance=-1)),
     "status": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(1),
                   Policy.Deadline(duration(seconds=2)), Policy.Liveliness.Automatic(duration(seconds=3))),
+    "circulation": Qos(_RELIABLE, Policy.Durability.Volatile, Policy.History.KeepLast(16)),
 }
-# Readers differ from their topic in two ways: they request no deadline (a service offers
-# one), and ack readers keep all (the acks of every client of a run share one instance).
+# Readers differ from their topic in three ways: they request no deadline (a service offers
+# one), ack readers keep all (the acks of every client of a run share one instance), and
+# circulation readers keep 256 samples (a reader polling a few times a second gets them all).
 READER_QOS = {
     **QOS,
     "state": Qos(Policy.Deadline(duration(infinite=True)), base=QOS["state"]),
     "status": Qos(Policy.Deadline(duration(infinite=True)), base=QOS["status"]),
     "ack": Qos(Policy.History.KeepAll, base=QOS["ack"]),
+    "circulation": Qos(Policy.History.KeepLast(256), base=QOS["circulation"]),
 }
 TOPIC_NAMES = {
     "topology": "fiberfem_mesh_topology",
@@ -58,6 +63,7 @@ TOPIC_NAMES = {
     "command": "fiberfem_command",
     "ack": "fiberfem_command_ack",
     "status": "fiberfem_status",
+    "circulation": "fiberfem_circulation",
 }
 
 
@@ -101,7 +107,7 @@ class Topology:
 
 
 class Client:
-    """One DDS participant with readers of status, acks, states and topology and a writer of commands."""
+    """One DDS participant with readers of status, acks, states, topology and circulation and a writer of commands."""
 
     def __init__(self, client_id: Optional[str] = None, domain_id: int = 0):
         self.client_id = client_id or f"py-{os.getpid()}-{uuid.uuid4().hex[:8]}"
@@ -112,6 +118,17 @@ class Client:
         self._status = DataReader(self.dp, t["status"], qos=READER_QOS["status"])
         self._state = DataReader(self.dp, t["state"], qos=READER_QOS["state"])
         self._topology = DataReader(self.dp, t["topology"], qos=READER_QOS["topology"])
+        # Absent when access control refuses it (permissions made before the topic existed):
+        # everything else still works, the circulation calls raise with the reason.
+        self.circulation_refused = ""
+        try:
+            self._circulation = DataReader(
+                self.dp, Topic(self.dp, TOPIC_NAMES["circulation"], CirculationState, qos=QOS["circulation"]),
+                qos=READER_QOS["circulation"])
+        except DDSException as e:
+            self._circulation = None
+            self.circulation_refused = ("this identity may not read the circulation (its permissions do not grant "
+                                        f"fiberfem_circulation: remake them with scripts/make_security.sh): {e}")
         # The command path, absent when access control refuses it (an observer identity in
         # secure mode, docs/security.md): watching still works, send raises.
         self.commands_refused = ""
@@ -220,6 +237,34 @@ class Client:
             last, n = s.frame, n + 1
             yield s
 
+    def circulation_samples(self, run_id: str, after_frame: int = -1, wait_s: float = 10.0) -> list:
+        """The CirculationState samples of run_id with a frame after after_frame that have
+        arrived, oldest first, waiting up to wait_s for one; [] when none came (a run
+        without a circulation publishes none). SI units, the members of idl/circulation.idl."""
+        if self._circulation is None:
+            raise FiberfemError(self.circulation_refused)
+        end = time.monotonic() + wait_s
+        while True:
+            got = [c for c in self._circulation.take(N=256)
+                   if isinstance(c, CirculationState) and c.run_id == run_id and c.frame > after_frame]
+            if got or time.monotonic() >= end:
+                return sorted(got, key=lambda c: c.frame)
+            time.sleep(0.005)
+
+    def circulation_states(self, run_id: str, count: Optional[int] = None, wait_s: float = 10.0) -> Iterator:
+        """Successive CirculationState samples of run_id, every one published while reading
+        keeps up (the reader holds 256); raises FiberfemError after wait_s without one."""
+        last, n = -1, 0
+        while count is None or n < count:
+            got = self.circulation_samples(run_id, last, wait_s)
+            if not got:
+                raise FiberfemError(f"no circulation from '{run_id}' in {wait_s} s (a run without a circulation publishes none)")
+            for c in got:
+                if count is not None and n >= count:
+                    return
+                last, n = c.frame, n + 1
+                yield c
+
     def send(self, run_id: str, kind: str, args: Optional[dict] = None, wait_s: float = 10.0) -> Ack:
         """Sends a command (docs/commands.md) and waits for its acknowledgement."""
         if self._command is None:
@@ -248,11 +293,11 @@ class Client:
         raise FiberfemError(f"no acknowledgement of '{kind}' from '{run_id}' in {wait_s} s")
 
     def entities(self) -> dict:
-        """The participant's readers ("status", "state", "topology", "ack") and command writer
+        """The participant's readers ("status", "state", "topology", "ack", "circulation") and command writer
         ("command"; None with "ack" when commands are refused), for a caller that waits on
         them itself (fiberfem web's bridge attaches them to a WaitSet)."""
         return {"status": self._status, "state": self._state, "topology": self._topology, "ack": self._ack,
-                "command": self._command}
+                "command": self._command, "circulation": self._circulation}
 
     def post(self, run_id: str, kind: str, args: Optional[dict] = None) -> Command:
         """Writes a command without waiting (its answer comes through take_acks); returns the

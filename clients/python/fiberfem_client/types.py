@@ -1,4 +1,5 @@
-"""The fiberfem DDS types (idl/mesh.idl, idl/control.idl, idl/status.idl) for the
+"""The fiberfem DDS types (idl/mesh.idl, idl/control.idl, idl/status.idl,
+idl/circulation.idl) for the
 `cyclonedds` Python binding. Same names, members, order, keys and extensibility as the
 IDL: keep them in step (tests/idl/python_types_check.py compares them with the IDL member by
 member; tests/service/serve_test.cpp checks the two talk)."""
@@ -103,3 +104,53 @@ class ServiceStatus(IdlStruct, typename="fiberfem::ServiceStatus"):
     dt_s: float64
     recording: str
     recorded_frames: uint64
+
+
+@dataclass
+@appendable
+class CirculationState(IdlStruct, typename="fiberfem::CirculationState"):
+    """A run's lumped circulation at one frame (SI units; docs/dds.md, docs/circulation.md)."""
+    run_id: str
+    key("run_id")
+    frame: uint64
+    time_s: float64
+    la_pressure_pa: float64
+    la_volume_m3: float64
+    systemic_arterial_pressure_pa: float64
+    systemic_arterial_flow_m3_s: float64
+    mitral_flow_m3_s: float64
+    lv_pressure_pa: float64
+    lv_volume_m3: float64
+    systemic_venous_pressure_pa: float64
+    systemic_venous_flow_m3_s: float64
+    aortic_flow_m3_s: float64
+    ra_pressure_pa: float64
+    ra_volume_m3: float64
+    pulmonary_arterial_pressure_pa: float64
+    pulmonary_arterial_flow_m3_s: float64
+    tricuspid_flow_m3_s: float64
+    rv_pressure_pa: float64
+    rv_volume_m3: float64
+    pulmonary_venous_pressure_pa: float64
+    pulmonary_venous_flow_m3_s: float64
+    pulmonary_valve_flow_m3_s: float64
+    pressure_iterations: int32
+    blood_volume_m3: float64
+    beat: int32
+    beat_start_s: float64
+    lv_end_diastolic_volume_m3: float64
+    lv_end_systolic_volume_m3: float64
+    lv_stroke_volume_m3: float64
+    lv_ejection_fraction: float64
+    lv_peak_pressure_pa: float64
+    lv_end_diastolic_pressure_pa: float64
+    rv_end_diastolic_volume_m3: float64
+    rv_end_systolic_volume_m3: float64
+    rv_stroke_volume_m3: float64
+    rv_ejection_fraction: float64
+    rv_peak_pressure_pa: float64
+    rv_end_diastolic_pressure_pa: float64
+    systemic_arterial_max_pa: float64
+    systemic_arterial_min_pa: float64
+    pulmonary_arterial_max_pa: float64
+    pulmonary_arterial_min_pa: float64
