@@ -41,7 +41,7 @@ LEAD_S = 60.0 / 72 - 0.8                  # the atria contract this long before 
 # units before scale), peak tension (Pa).
 PHASES = [
     ("rest", 5, 72, 0.8, 22.0e3),
-    ("exercise", 10, 110, 0.5, 30.0e3),
+    ("exercise", 10, 100, 0.5, 30.0e3),
     ("rest again", 8, 72, 0.8, 22.0e3),
 ]
 MEASURED_BEATS = 2  # the last whole beats of each phase

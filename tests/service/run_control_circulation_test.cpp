@@ -13,6 +13,8 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 
 namespace fiberfem::service {
 namespace {
@@ -21,34 +23,16 @@ namespace cc = core::circulation;
 
 // A small contracting left ventricle coupled to the loop (scaled to it); the loop beats
 // with the contraction (no circulation.heart_rate).
-const char* kVentricle = R"(
-name: steered-ventricle
-mesh:
-  generator: lv_ellipsoid
-  resolution: {circumferential: 12, longitudinal: 6, transmural: 2}
-regions:
-  - name: myocardium
-    select: all
-    material: {E_L: 60.0e3, E_T: 20.0e3, nu_LT: 0.4, nu_T: 0.45, G_L: 8.0e3, density: 1060.0}
-    damping: {mass: 20.0, stiffness: 0.0}
-fibers:
-  rule: {endo_angle: 60, epi_angle: -60}
-fixed:
-  - node_set: base
-contraction:
-  peak_tension: 25.0e3
-  heart_rate: 75
-  twitch: {shape: biexponential, tau1: 0.05, tau2: 0.11}
-measure:
-  cavities:
-    lv: {node_set: endo}
-circulation:
-  ventricles: {left: lv}
-  scale: {pressure: 0.1, volume: 0.015}
-solver: {dt: 0.0166667, method: direct, threads: 1}
-)";
+const std::string kVentricleFile = std::string(FIBERFEM_SOURCE_DIR) + "/tests/scenes/lv-circulation.yaml";
 
-io::Scene ventricle() { return io::parse_scene(kVentricle, "steered-ventricle"); }
+std::string ventricle_text() {
+  std::ifstream f(kVentricleFile);
+  std::stringstream text;
+  text << f.rdbuf();
+  return text.str();
+}
+
+io::Scene ventricle() { return io::load_scene(kVentricleFile); }
 
 void run(RunControl& rc, int steps) {
   for (int i = 0; i < steps; ++i) {
@@ -94,7 +78,7 @@ TEST(RunControlCirculation, BadValuesAreRefusedNamingTheKeyAndChangeNothing) {
   EXPECT_EQ((rc.engine().positions() - untouched.engine().positions()).cwiseAbs().maxCoeff(), 0.0);
 
   // A run without a circulation refuses the command by name.
-  std::string plain = kVentricle;
+  std::string plain = ventricle_text();
   plain.erase(plain.find("circulation:"), plain.find("solver:") - plain.find("circulation:"));
   RunControl none(io::parse_scene(plain, "plain"));
   const CommandResult r = none.apply("set_circulation", R"({"heart_rate": 90})");
@@ -114,8 +98,7 @@ TEST(RunControlCirculation, SteeredKeysActLikeSceneKeysAndResumeWithTheRun) {
   ASSERT_TRUE(ok.accepted) << ok.reason;
   EXPECT_EQ(rc.parameter_version(), 1u);
   EXPECT_TRUE(rc.engine().circulation_state()->pressure_pa == before.pressure_pa);
-  const io::Scene with_key =
-      io::parse_scene(kVentricle, "steered-ventricle", "", {"circulation.systemic.arteries.resistance=2.4"});
+  const io::Scene with_key = io::load_scene(kVentricleFile, {"circulation.systemic.arteries.resistance=2.4"});
   EXPECT_EQ(rc.engine().model().circulation.parameters.compartments[cc::ar_sys].resistance_pa_s_m3,
             with_key.model.circulation.parameters.compartments[cc::ar_sys].resistance_pa_s_m3);
   run(rc, 5);
