@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from fiberfem_client import Client
+from fiberfem_client import Client, FiberfemError
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = os.path.join(ROOT, "configs", "scenes", "heart-circulation-realtime.yaml")
@@ -58,7 +58,10 @@ def phase_commands(rate, resistance, tension):
 def wait_frame(client, run, frame, timeout_s=600):
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
-        s = client.status(run, wait_s=10)
+        try:
+            s = client.status(run, wait_s=10)
+        except FiberfemError:  # a busy machine can hold a status back; the run is still there
+            continue
         if s.frame >= frame:
             return s
         time.sleep(0.05)
@@ -69,8 +72,8 @@ def serve_and_drive(binary, archive, run_id):
     """Serves the scene, plays the phases; returns each phase's (start, end) step and the
     heart rate the service's status reported in it."""
     log = open(archive + ".serve.log", "w")
-    service = subprocess.Popen([binary, "serve", SCENE, "--run-id", run_id, "--fast", "--paused",
-                                "--set", "archive.path=" + archive, "--set", "archive.checkpoint_every=0.25"],
+    service = subprocess.Popen([binary, "serve", SCENE, "--run-id", run_id, "--fast", "--paused", "--threads", "1",
+                                "--set", "archive.path=" + archive, "--set", "archive.checkpoint_every=1"],
                                stdout=log, stderr=subprocess.STDOUT)
     client = Client()
     spans, step, beat_start = [], 0, 0.0
@@ -104,7 +107,7 @@ def serve_and_drive(binary, archive, run_id):
 def phase_report(binary, archive, out_dir, name, end_step, period):
     """Resumes the archive a few beats before `end_step` and runs to it with a report."""
     start_s = end_step * DT - (MEASURED_BEATS + 1) * period
-    report = os.path.join(out_dir, name.replace(" ", "-") + ".json")
+    report = os.path.join(out_dir, "phase-" + name.replace(" ", "-") + ".json")
     r = subprocess.run([binary, "run", "--resume", f"{archive}@{start_s:.6f}", "--steps", str(end_step),
                         "--report", report], capture_output=True, text=True)
     if r.returncode != 0:
@@ -155,7 +158,7 @@ def main():
               f"{f['aortic_max_mmhg']:4.0f}/{f['aortic_min_mmhg']:<3.0f} {f['cardiac_output_ml_min']:9.0f} | "
               f"{'':13} {f['stroke_volume_ml'] / SCALE_V:6.1f} {f['mean_aortic_mmhg'] / SCALE_P:5.0f} "
               f"{f['cardiac_output_ml_min'] / SCALE_V / 1000:8.2f}")
-    with open(os.path.join(a.out, "exercise.json"), "w") as fjson:
+    with open(os.path.join(a.out, "figures.json"), "w") as fjson:
         json.dump(rows, fjson, indent=1)
     return 0
 
