@@ -147,10 +147,7 @@ Scene parse_scene(const std::string& yaml_text, const std::string& origin, const
     throw SceneError(origin + ": " + e.what());
   }
   scene.cavities = detail::read_cavities(top, model.mesh);
-  if (top.has("circulation")) {
-    if (scene.accurate()) top.checks().fail(top["circulation"], "circulation", "runs on the corotated tier only (no material.law, mesh.order 1)");
-    detail::read_circulation(top, scene.cavities, model);
-  }
+  if (top.has("circulation")) detail::read_circulation(top, scene.cavities, scene.accurate(), model);
   if (top.has("archive")) scene.archive = detail::read_archive(checks, top["archive"]);
   text_and_hash(root, files, scene);
   scene.base_dir = base_dir;

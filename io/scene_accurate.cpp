@@ -27,6 +27,15 @@ std::array<int, 3> sorted(const core::Tri& t) {
   return s;
 }
 
+// Each boundary triangle of the corner mesh (sorted nodes) to its index in
+// ElementMesh::boundary_faces (the element mesh keeps the corner mesh's boundary order).
+std::map<std::array<int, 3>, int> boundary_face_index(const core::TetMesh& mesh) {
+  std::map<std::array<int, 3>, int> face_of;
+  const auto& boundary = mesh.boundary_triangles();
+  for (size_t f = 0; f < boundary.size(); ++f) face_of[sorted(boundary[f])] = static_cast<int>(f);
+  return face_of;
+}
+
 std::shared_ptr<const ElementMesh> element_mesh(const Scene& sc) {
   const core::TetMesh& corners = sc.model.mesh;
   if (sc.mesh_order == 2 && sc.file_elements) return sc.file_elements;
@@ -113,9 +122,7 @@ AccurateProblem accurate_problem(const Scene& sc) {
   problem->gravity_m_s2 = model.loads.gravity_m_s2;
   if (!model.fixed_dofs.empty()) problem->fixed_dofs = mesh.fixed_dofs(model.fixed_dofs);
   if (!model.loads.point_forces.empty()) throw SceneError(sc.name + ": loads.forces: the accurate tier takes pressures and gravity, not point forces");
-  std::map<std::array<int, 3>, int> face_of;
-  const auto& boundary = model.mesh.boundary_triangles();
-  for (size_t f = 0; f < boundary.size(); ++f) face_of[sorted(boundary[f])] = static_cast<int>(f);
+  const std::map<std::array<int, 3>, int> face_of = boundary_face_index(model.mesh);
   for (size_t i = 0; i < model.loads.surface_loads.size(); ++i) {
     const core::SurfaceLoad& load = model.loads.surface_loads[i];
     if (load.force_per_area_pa != core::Vec3::Zero())
@@ -139,6 +146,28 @@ AccurateProblem accurate_problem(const Scene& sc) {
   if (s.threads) out.newton.threads = *s.threads;
   problem->validate();
   out.problem = std::move(problem);
+  return out;
+}
+
+std::vector<core::hyperelastic::CoupledCavity> add_circulation_loads(const Scene& sc, AccurateProblem& ap) {
+  std::vector<core::hyperelastic::CoupledCavity> out;
+  const std::map<std::array<int, 3>, int> face_of = boundary_face_index(sc.model.mesh);
+  for (const core::circulation::CoupledCavity& c : sc.model.circulation.cavities) {
+    PressureLoad p;
+    p.pressure_pa = 1.0;
+    p.follower = true;
+    for (const core::Tri& t : c.surface.faces) {
+      const auto it = face_of.find(sorted(t));
+      if (it == face_of.end()) throw SceneError(sc.name + ": circulation.ventricles: a face of cavity '" + c.name + "' is not on the boundary");
+      p.faces.push_back(it->second);
+    }
+    core::hyperelastic::CoupledCavity cc;
+    cc.chamber = c.chamber;
+    cc.pressure_load = static_cast<int>(ap.problem->pressures.size());
+    cc.surface = c.surface;
+    ap.problem->pressures.push_back(std::move(p));
+    out.push_back(std::move(cc));
+  }
   return out;
 }
 

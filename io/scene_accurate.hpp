@@ -2,6 +2,7 @@
 /// @file A scene on the accurate tier (material.law, mesh.order 2) as the problem its
 /// Newton solver takes.
 
+#include "core/hyperelastic/circulation_coupling.hpp"
 #include "core/hyperelastic/dynamic.hpp"
 #include "io/scene.hpp"
 
@@ -23,6 +24,12 @@ void check_accurate(const Scene& scene);
 /// region's peak tension, pressure loads on the boundary faces they name.
 /// @throws SceneError for what the accurate tier does not take (point forces, traction vectors).
 AccurateProblem accurate_problem(const Scene& scene);
+
+/// A scene with a circulation: each coupled cavity's wall as a follower pressure load of
+/// 1 Pa appended to `ap`'s problem (the coupling scales it by the cavity's pressure each
+/// step; a static solve leaves them out by not calling this), and the cavities as the
+/// coupling takes them. Empty without a circulation.
+std::vector<core::hyperelastic::CoupledCavity> add_circulation_loads(const Scene& scene, AccurateProblem& ap);
 
 /// The time-step settings of an accurate scene: solver.dt, the Newton keys, and the one
 /// mass damping of the body. @throws SceneError when a region has stiffness damping or

@@ -118,7 +118,7 @@ void read_ventricles(const CheckedMap& c, const std::vector<CavityMeasure>& cavi
 
 }  // namespace
 
-void read_circulation(const CheckedMap& top, const std::vector<CavityMeasure>& cavities, core::Model& model) {
+void read_circulation(const CheckedMap& top, const std::vector<CavityMeasure>& cavities, bool accurate, core::Model& model) {
   const Checks& checks = top.checks();
   const CheckedMap c(checks, top["circulation"], "circulation", circulation_keys());
   if (!c.has("ventricles")) c.fail("needs ventricles: {left: CAVITY, right: CAVITY} (names from measure.cavities)");
@@ -135,6 +135,9 @@ void read_circulation(const CheckedMap& top, const std::vector<CavityMeasure>& c
     for (double& pr : coupling.initial.pressure_pa) pr *= ps;
     for (double& q : coupling.initial.flow_m3_s) q *= vs;
   }
+  // The accurate tier's cavity volumes are as exact as its Newton solves (a relative
+  // residual of 1e-9 leaves about 1e-8 of the volume): its default is looser.
+  if (accurate) coupling.volume_tolerance = kAccurateVolumeTolerance;
   if (c.has("volume_tolerance")) coupling.volume_tolerance = c.number("volume_tolerance", 0, 1e-3, true);
   if (c.has("max_iterations")) coupling.max_iterations = c.integer("max_iterations", 1, 200);
   model.circulation = std::move(coupling);

@@ -78,8 +78,11 @@ std::vector<Probe> read_probes(const CheckedMap& top, const core::TetMesh& mesh)
 /// measure.cavities.
 std::vector<CavityMeasure> read_cavities(const CheckedMap& top, const core::TetMesh& mesh);
 /// circulation: the lumped loop coupled to the measured `cavities` it names (into
-/// model.circulation; needs model.fixed_dofs and model.contraction read).
-void read_circulation(const CheckedMap& top, const std::vector<CavityMeasure>& cavities, core::Model& model);
+/// model.circulation; needs model.fixed_dofs and model.contraction read). `accurate`: the
+/// scene runs on the accurate tier (its default volume tolerance).
+void read_circulation(const CheckedMap& top, const std::vector<CavityMeasure>& cavities, bool accurate, core::Model& model);
+/// circulation.volume_tolerance's default on the accurate tier.
+inline constexpr double kAccurateVolumeTolerance = 1e-6;
 /// archive.
 ArchiveSettings read_archive(const Checks& checks, const YAML::Node& node);
 

@@ -2,6 +2,7 @@
 // on the scene's element mesh, its probes interpolated with the element's shape functions,
 // in the same report sections as the real-time tier's static solve.
 
+#include "service/batch_circulation.hpp"
 #include "service/batch_report.hpp"
 #include "service/batch_series.hpp"
 
@@ -49,6 +50,7 @@ int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out) {
                 ap.problem->mixed() ? ", incompressible (mixed displacement-pressure)" : "");
   out << line;
   if (!ap.problem->active_tension_pa.empty()) out << "static: the contraction is held at its peak tension\n";
+  if (sc.model.circulation.enabled()) out << "static: note: the circulation loads the cavities in dynamic runs only\n";
   core::Positions x;
   Eigen::VectorXd p;
   const core::hyperelastic::NewtonReport r = core::hyperelastic::solve_static(*ap.problem, x, p, ap.newton);
@@ -96,9 +98,10 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
   out << line;
   const StopSignals stop_signals;  // an interrupted run still writes its report
   RunSeries series(sc, run.engine());  // cavity volumes and probes per beat, from the rest state
+  CirculationSeries circulation(sc, run.engine());
   start_run(run, o, report, out);
   std::string reason;
-  int done = static_cast<int>(engine.step_count()), most_iterations = 0;
+  int done = static_cast<int>(engine.step_count()), most_iterations = 0, recovered = 0;
   for (int s = done + 1; s <= steps && !stop_signals.caught(); ++s) {
     const long frames_before = run.recorded_frames();
     const core::StepReport& r = run.step(/*record_failure=*/false);
@@ -108,8 +111,10 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
     }
     done = s;
     series.add(run.engine(), run.cavity_volumes());
+    circulation.add(run.engine());
     if (run.recorded_frames() != frames_before) log_frame(run, o, out);
     most_iterations = std::max(most_iterations, r.solver_iterations);
+    if (r.substeps > 1) ++recovered;
     if (steps >= 5 && s % (steps / 5) != 0 && s != steps) continue;
     const core::Vec3 u = sc.probes.empty() ? core::Vec3::Zero() : io::accurate_probe_displacement(mesh, sc.probes[0], engine.element_positions());
     std::snprintf(line, sizeof line, "t=%7.3f s  step %5d/%d  %s%s%.3e m  Newton %d\n", engine.time_s(), s, steps,
@@ -124,9 +129,9 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
   const bool completed = done == steps;
   std::snprintf(line, sizeof line,
                 "dynamic: %s, %d of %d steps in %.2f s (%.1f steps/s), %d Newton iterations (at most %d in a step), %d "
-                "factorisations\n",
+                "factorisations, %d steps recovered with substeps\n",
                 completed ? "completed" : (reason.empty() ? "interrupted" : "FAILED"), done, steps, wall, done / std::max(wall, 1e-9),
-                totals.iterations, most_iterations, totals.factorisations);
+                totals.iterations, most_iterations, totals.factorisations, recovered);
   out << line;
   if (!reason.empty()) out << "dynamic: " << reason << "\n";
   report["status"] = completed ? "completed" : (reason.empty() ? "interrupted" : "failed");
@@ -139,11 +144,13 @@ int run_dynamic_accurate(const io::Scene& sc, const BatchOptions& o, int steps, 
                        {"newton_iterations", totals.iterations},
                        {"most_newton_iterations", most_iterations},
                        {"factorisations", totals.factorisations},
-                       {"krylov_iterations", totals.krylov_iterations}};
+                       {"krylov_iterations", totals.krylov_iterations},
+                       {"recovered_with_substeps", recovered}};
   report["timing"] = {{"wall_s", wall}, {"assembly_s", totals.assembly_s}, {"linear_solve_s", totals.factor_s}};
   report["steps"] = {{"requested", steps}, {"completed", done}, {"dt_s", engine.dt_s()}, {"simulated_time_s", engine.time_s()}};
   report["probes"] = probes;
   series.finish(run.engine(), report, out);
+  circulation.finish(report, out);
   return completed ? 0 : 1;
 }
 

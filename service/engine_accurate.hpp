@@ -25,9 +25,14 @@ class AccurateEngine final : public Engine {
   /// The point forces on corner nodes (the commands' forces), replacing those set before.
   /// @throws std::invalid_argument for a node out of range or a non-finite force.
   void set_point_forces(const std::vector<core::PointForce>& forces);
-  EngineCheckpoint checkpoint() const override { return solver_->state(); }
+  EngineCheckpoint checkpoint() const override { return coupled_ ? coupled_->checkpoint() : solver_->state(); }
   void restore(const EngineCheckpoint& c) override;
   void reset() override;
+  const core::circulation::State* circulation_state() const override { return coupled_ ? &coupled_->state() : nullptr; }
+  const std::vector<double>& coupled_cavity_volumes() const override {
+    return coupled_ ? coupled_->volumes() : Engine::coupled_cavity_volumes();
+  }
+  int circulation_iterations() const override { return coupled_ ? coupled_->last_pressure_iterations() : 0; }
   AccurateEngine* accurate() override { return this; }
 
   /// Builds the engine of `running` (the same scene with changed parameters) and carries
@@ -52,10 +57,17 @@ class AccurateEngine final : public Engine {
     return {x.data(), 3, problem_.mesh->num_corner_nodes()};
   }
   void update_tension();
+  core::StepReport attempt(int substeps);
+  void restore_state(const EngineCheckpoint& c);  // restore() without touching the tension
+  static constexpr int kMaxSubsteps = 8;
+  // A solver (and its coupling to the circulation, when the scene has one) at rest.
+  void start(const core::hyperelastic::DynamicSettings& settings);
 
   io::Scene scene_;
   io::AccurateProblem problem_;
   std::unique_ptr<core::hyperelastic::DynamicSolver> solver_;
+  std::vector<core::hyperelastic::CoupledCavity> cavities_;  // empty: no circulation
+  std::unique_ptr<core::hyperelastic::CirculationCoupledDynamics> coupled_;
   core::Positions nodal_forces_n_;  // 3 x element-mesh nodes; empty: none
   std::vector<double> tension_pa_;
 };

@@ -45,7 +45,8 @@ CoupledStepReport CirculationCoupledDynamics::step(Loading loading) {
   const int m = static_cast<int>(cavities_.size());
   const double h = solver_.dt_s();
   CoupledStepReport rep;
-  if (loading.pressure_factors.size() != static_cast<size_t>(num_loads_)) loading.pressure_factors.assign(static_cast<size_t>(num_loads_), 1.0);
+  // The caller's factors for its own loads (ramps) are kept; the cavities' are set below.
+  loading.pressure_factors.resize(static_cast<size_t>(num_loads_), 1.0);
   struct Eval {
     Positions x;
     Eigen::VectorXd p, residual, volume;
@@ -138,8 +139,40 @@ CoupledStepReport CirculationCoupledDynamics::step(Loading loading) {
   solver_.accept_step(e.x, e.p);
   state_ = e.loop;
   for (int k = 0; k < m; ++k) volumes_[static_cast<size_t>(k)] = e.volume(k);
+  last_iterations_ = rep.pressure_iterations;
   rep.converged = true;
   return rep;
+}
+
+DynamicState CirculationCoupledDynamics::checkpoint() const {
+  DynamicState s = solver_.state();
+  s.circulation = state_;
+  s.cavity_volume_m3 = volumes_;
+  if (have_slope_) s.cavity_slope = slope_;
+  return s;
+}
+
+void CirculationCoupledDynamics::restore(const DynamicState& s) {
+  if (s.cavity_volume_m3.size() != cavities_.size())
+    throw std::invalid_argument("dynamic state: " + std::to_string(s.cavity_volume_m3.size()) + " coupled cavities, the run has " +
+                                std::to_string(cavities_.size()));
+  const auto n = static_cast<Eigen::Index>(cavities_.size());
+  if (s.cavity_slope.size() != 0 && (s.cavity_slope.rows() != n || s.cavity_slope.cols() != n))
+    throw std::invalid_argument("dynamic state: a cavity volume slope of the wrong size");
+  solver_.restore(s);
+  state_ = s.circulation;
+  volumes_ = s.cavity_volume_m3;
+  have_slope_ = s.cavity_slope.size() != 0;
+  slope_ = s.cavity_slope;
+  last_iterations_ = 0;
+}
+
+void CirculationCoupledDynamics::continue_from(const CirculationCoupledDynamics& previous) {
+  if (previous.cavities_.size() != cavities_.size()) throw std::invalid_argument("circulation: another set of coupled cavities");
+  state_ = previous.state_;
+  volumes_ = previous.volumes_;
+  slope_ = previous.slope_;
+  have_slope_ = previous.have_slope_;
 }
 
 }  // namespace fiberfem::core::hyperelastic

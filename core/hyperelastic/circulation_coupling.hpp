@@ -46,6 +46,18 @@ class CirculationCoupledDynamics {
   /// The cavities' volumes at the current state, m^3.
   const std::vector<double>& volumes() const { return volumes_; }
   const circulation::Parameters& parameters() const { return parameters_; }
+  /// Newton iterations on the pressures (converged body solves) of the last step.
+  int last_pressure_iterations() const { return last_iterations_; }
+
+  /// The solver's state() with the coupling's (the loop, the volumes, the slope).
+  DynamicState checkpoint() const;
+  /// Restores the solver and the coupling from a checkpoint() of the same problem; a state
+  /// without cavity volumes (of an uncoupled run) is refused.
+  /// @throws std::invalid_argument naming what does not fit (nothing changes then).
+  void restore(const DynamicState& s);
+  /// Carries `previous`'s loop state, volumes and slope over (its solver's state is the
+  /// caller's to carry: DynamicSolver::continue_from).
+  void continue_from(const CirculationCoupledDynamics& previous);
 
  private:
   double volume(int k, const Positions& x) const { return cavity_volume(cavities_[static_cast<size_t>(k)].surface, x); }
@@ -59,6 +71,7 @@ class CirculationCoupledDynamics {
   std::vector<double> volumes_, rest_volumes_;
   Eigen::MatrixXd slope_;  // d V_cavity / d p, m^3/Pa (secant estimate)
   bool have_slope_ = false;
+  int last_iterations_ = 0;
 };
 
 }  // namespace fiberfem::core::hyperelastic

@@ -38,7 +38,7 @@ DynamicStepReport DynamicSolver::step(const Loading& loading) {
 }
 
 DynamicStepReport DynamicSolver::solve_step(const Loading& loading, Positions& x, Eigen::VectorXd& p) {
-  const double h = settings_.dt_s;
+  const double h = dt_s();
   const ResidualFn residual = [&](const Positions& xx, const Eigen::VectorXd& pp, Eigen::VectorXd& R, SparseMatrix* K) {
     const Evaluation ev = assembler_.evaluate(xx, pp, loading, R, K);
     assembler_.add_inertia(xx, x_, v_, h, settings_.mass_damping_1_s, R, K);
@@ -66,11 +66,20 @@ DynamicStepReport DynamicSolver::solve_step(const Loading& loading, Positions& x
 }
 
 void DynamicSolver::accept_step(const Positions& x, const Eigen::VectorXd& p) {
-  v_ = (x - x_) / settings_.dt_s;
+  v_ = (x - x_) / dt_s();
   x_ = x;
   p_ = p;
-  t_s_ += settings_.dt_s;
-  ++steps_;
+  t_s_ += dt_s();
+  if (++substep_ == substeps_) {
+    substep_ = 0;
+    ++steps_;
+  }
+}
+
+void DynamicSolver::set_substeps(int n) {
+  if (n < 1) throw std::invalid_argument("dynamic: substeps must be >= 1");
+  if (substep_ != 0) throw std::invalid_argument("dynamic: substeps changed in the middle of a step");
+  substeps_ = n;
 }
 
 DynamicState DynamicSolver::state() const { return {x_, v_, p_, t_s_, steps_, linear_.state()}; }
@@ -98,6 +107,7 @@ void DynamicSolver::restore(const DynamicState& s) {
   p_ = s.p;
   t_s_ = s.time_s;
   steps_ = s.steps;
+  substep_ = 0;
 }
 
 NewtonReport DynamicSolver::totals() const {

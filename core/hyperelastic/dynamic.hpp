@@ -6,9 +6,11 @@
 /// and mass-proportional damping alpha. The incompressibility constraint, when a region
 /// has one, holds at every step.
 
+#include "core/circulation/circulation.hpp"
 #include "core/hyperelastic/newton.hpp"
 
 #include <string>
+#include <vector>
 
 namespace fiberfem::core::hyperelastic {
 
@@ -35,6 +37,13 @@ struct DynamicState {
   double time_s = 0;        ///< Simulation time, s.
   long steps = 0;           ///< Steps taken.
   TangentSolver::State linear;  ///< The lagged factor's matrices.
+  /// A run coupled to a circulation (circulation_coupling.hpp; DynamicSolver neither writes
+  /// nor reads these): the loop's state, each coupled cavity's volume, m^3, and the secant
+  /// estimate of the cavities' volume slope, m^3/Pa (0 x 0 before the first step). Empty
+  /// cavity volumes: no circulation.
+  circulation::State circulation;
+  std::vector<double> cavity_volume_m3;
+  Eigen::MatrixXd cavity_slope;
 };
 
 class DynamicSolver {
@@ -54,8 +63,14 @@ class DynamicSolver {
   /// Makes a converged solve_step's end the state, one step later.
   void accept_step(const Positions& x, const Eigen::VectorXd& p);
   /// The predictor of the next step: the last velocity carried over it.
-  Positions predicted_positions() const { return x_ + settings_.dt_s * v_; }
-  double dt_s() const { return settings_.dt_s; }
+  Positions predicted_positions() const { return x_ + dt_s() * v_; }
+  /// The size of the steps being taken: settings().dt_s, or a substep of it.
+  double dt_s() const { return settings_.dt_s / substeps_; }
+  /// Takes the following steps as `n` substeps of dt/n (n >= 1; 1: whole steps): each
+  /// accept_step advances the time by dt/n, the step count once every n (a step that failed
+  /// whole is retried in substeps; set it back to 1 after them).
+  /// @throws std::invalid_argument for n < 1 or in the middle of a step's substeps.
+  void set_substeps(int n);
 
   double time_s() const { return t_s_; }
   long steps() const { return steps_; }
@@ -90,6 +105,7 @@ class DynamicSolver {
   Eigen::VectorXd p_;
   double t_s_ = 0;
   long steps_ = 0;
+  int substeps_ = 1, substep_ = 0;  // substeps per step, and those taken of this step
   NewtonReport totals_;
 };
 

@@ -453,12 +453,22 @@ json accurate_checkpoint(const core::hyperelastic::DynamicState& c, double dt_s,
   b.add("p", c.p.data(), static_cast<size_t>(c.p.size()));
   add_sparse(b, "linear.analysed", c.linear.analysed);
   add_sparse(b, "linear.factored", c.linear.factored);
+  // A run with a circulation: the loop's state, each coupled cavity's volume and the
+  // secant estimate of their volume slope (row-major; absent before the first step).
+  if (!c.cavity_volume_m3.empty()) {
+    const std::vector<double> loop = circulation_numbers(c.circulation);
+    b.add("circulation.state", loop.data(), loop.size());
+    b.add("circulation.cavity_volume_m3", c.cavity_volume_m3.data(), c.cavity_volume_m3.size());
+    const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> slope = c.cavity_slope;
+    b.add("circulation.cavity_slope", slope.data(), static_cast<size_t>(slope.size()));
+  }
   return {{"tier", "accurate"},
           {"time_s", c.time_s},
           {"step_count", c.steps},
           {"dt_s", dt_s},
           {"num_nodes", c.x.cols()},
-          {"num_pressures", c.p.size()}};
+          {"num_pressures", c.p.size()},
+          {"circulation_cavities", c.cavity_volume_m3.size()}};
 }
 
 }  // namespace

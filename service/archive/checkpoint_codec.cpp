@@ -55,6 +55,18 @@ core::hyperelastic::DynamicState accurate_checkpoint_of(const json& h, const std
   c.p = vector_of(section(h, data, "p"));
   c.linear.analysed = sparse_of(h, data, "linear.analysed");
   c.linear.factored = sparse_of(h, data, "linear.factored");
+  const size_t cavities = h.value("circulation_cavities", size_t{0});
+  if (cavities > 0) {
+    c.circulation = circulation_state_of(section(h, data, "circulation.state"));
+    const Section vol = section(h, data, "circulation.cavity_volume_m3"), slope = section(h, data, "circulation.cavity_slope");
+    if (vol.n != cavities || (slope.n != 0 && slope.n != cavities * cavities))
+      throw std::runtime_error("archive: checkpoint sections 'circulation.cavity_volume_m3' or '.cavity_slope' have the wrong size");
+    c.cavity_volume_m3.assign(vol.p, vol.p + vol.n);
+    if (slope.n > 0) {
+      const auto n = static_cast<Eigen::Index>(cavities);
+      c.cavity_slope = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(slope.p, n, n);
+    }
+  }
   return c;
 }
 

@@ -217,6 +217,47 @@ TEST_F(ArchiveCli, ACirculationRunResumesBitForBit) {
   EXPECT_TRUE(ca.cavity_volume_m3 == cb.cavity_volume_m3);
 }
 
+// On the accurate tier as well: the checkpoint adds the loop's state, the cavity's volume
+// and the secant slope of the pressure iteration to the body's state.
+TEST_F(ArchiveCli, AnAccurateCirculationRunResumesBitForBit) {
+  TempDir dir;
+  const std::string scene = dir.file("lv.yaml"), a = dir.file("a.h5"), b = dir.file("b.h5");
+  testing::write_file(scene, R"(name: lv-circulation
+mesh: {generator: lv_ellipsoid, resolution: {circumferential: 24, longitudinal: 10, transmural: 3}, refine: 0.5}
+regions:
+  - {name: myocardium, select: all, material: {law: neo_hookean, E: 40000.0, nu: 0.3, density: 1060.0}, damping: {mass: 20.0, stiffness: 0.0}}
+fibers: {rule: {endo_angle: 60, epi_angle: -60}}
+fixed: [{node_set: base}]
+contraction: {peak_tension: 500.0, heart_rate: 72}
+measure: {cavities: {lv: {node_set: endo}}}
+circulation: {ventricles: {left: lv}, scale: {pressure: 0.00125, volume: 0.015}}
+solver: {dt: 0.0166667}
+)");
+  auto run = run_process({kBin, "run", scene, "--steps", "40", "--archive", a, "--checkpoint-every", "0.3"});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  run = run_process({kBin, "run", "--resume", a + "@0.4", "--archive", b, "--steps", "40"});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const archive::ArchiveReader ra(a), rb(b);
+  ASSERT_EQ(rb.steps().front(), 18);
+  for (long i = 0; i < rb.frames(); ++i) {
+    const archive::Frame fb = rb.frame(i), fa = ra.frame(fb.step);
+    EXPECT_TRUE(fb.positions == fa.positions) << "step " << fb.step;
+  }
+  using core::hyperelastic::DynamicState;
+  const auto ca = std::get<DynamicState>(ra.read_engine_checkpoint(ra.checkpoints().size() - 1));
+  const auto cb = std::get<DynamicState>(rb.read_engine_checkpoint(rb.checkpoints().size() - 1));
+  ASSERT_EQ(ca.steps, 40);
+  ASSERT_EQ(cb.steps, 40);
+  ASSERT_EQ(cb.cavity_volume_m3.size(), 1u);
+  EXPECT_EQ(cb.cavity_slope.size(), 1);
+  EXPECT_TRUE(ca.x == cb.x);
+  EXPECT_TRUE(ca.circulation.volume_m3 == cb.circulation.volume_m3);
+  EXPECT_TRUE(ca.circulation.pressure_pa == cb.circulation.pressure_pa);
+  EXPECT_TRUE(ca.cavity_volume_m3 == cb.cavity_volume_m3);
+  EXPECT_TRUE(ca.cavity_slope == cb.cavity_slope);
+  EXPECT_GT(ca.circulation.volume_m3[0], 0);
+}
+
 TEST_F(ArchiveCli, ResumeContinuesBitForBit) {
   TempDir dir;
   const std::string a = dir.file("a.h5"), b = dir.file("b.h5");

@@ -98,5 +98,17 @@ TEST(SceneCirculation, BadInputNamesTheKey) {
   expect_error(replace_once(good, "  ventricles: {left: lv}\n", ""), {"circulation", "needs ventricles"});
   expect_error(replace_once(good, "scale: {pressure: 0.1", "scale: {pressure: 0"), {"circulation.scale.pressure"});
   expect_error(replace_once(good, "  systemic:", "  systemic_typo: 1\n  systemic:"), {"circulation.systemic_typo", "unknown key"});
-  expect_error(replace_once(good, "material: {E:", "material: {law: neo_hookean, E:"), {"circulation", "corotated tier only"});
+}
+
+// A scene on the accurate tier takes the key too, with the looser default volume tolerance
+// its Newton solves allow (an explicit one is kept).
+TEST(SceneCirculation, TheAccurateTierTakesItWithItsOwnDefaultTolerance) {
+  const std::string accurate = replace_once(kBase + kCirculation, "material: {E:", "material: {law: neo_hookean, E:");
+  const sc::Scene s = sc::parse_scene(accurate, "circ.yaml");
+  ASSERT_TRUE(s.accurate());
+  ASSERT_TRUE(s.model.circulation.enabled());
+  EXPECT_EQ(s.model.circulation.volume_tolerance, 1e-6);
+  EXPECT_EQ(sc::parse_scene(kBase + kCirculation, "circ.yaml").model.circulation.volume_tolerance, 1e-9);
+  const sc::Scene told = sc::parse_scene(replace_once(accurate, "ventricles: {left: lv}", "ventricles: {left: lv}\n  volume_tolerance: 1e-7"), "circ.yaml");
+  EXPECT_EQ(told.model.circulation.volume_tolerance, 1e-7);
 }

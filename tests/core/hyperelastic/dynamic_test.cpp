@@ -54,6 +54,32 @@ TEST(DynamicSolver, AFreeBodyFallsAsBackwardEulerPredicts) {
   }
 }
 
+// Substeps (a step that failed whole is retried so): n substeps of dt/n are backward Euler
+// at dt/n, and count as one step.
+TEST(DynamicSolver, SubstepsAreBackwardEulerAtTheSubstepAndCountAsOneStep) {
+  const Problem problem = box_problem(false, false);
+  DynamicSettings settings;
+  settings.dt_s = 0.02;
+  DynamicSolver solver(problem, settings);
+  const int steps = 5, n = 4;
+  for (int s = 0; s < steps; ++s) {
+    solver.set_substeps(n);
+    for (int i = 0; i < n; ++i) {
+      ASSERT_TRUE(solver.step(Loading{}).converged);
+      if (i == 1) EXPECT_THROW(solver.set_substeps(1), std::invalid_argument);  // only between steps
+    }
+    EXPECT_EQ(solver.steps(), s + 1);
+    solver.set_substeps(1);
+  }
+  const double h = settings.dt_s / n;
+  const int k = steps * n;
+  const double expected = -9.81 * h * h * k * (k + 1) / 2;
+  const Positions u = solver.positions() - problem.mesh->rest_positions();
+  EXPECT_NEAR(u.row(2).minCoeff(), expected, 1e-9 * std::abs(expected));
+  EXPECT_NEAR(solver.time_s(), steps * settings.dt_s, 1e-12);
+  EXPECT_THROW(solver.set_substeps(0), std::invalid_argument);
+}
+
 TEST(DynamicSolver, AHeavilyDampedCantileverSettlesOnTheStaticSolution) {
   const Problem problem = box_problem(false, true);
   Positions xs;
