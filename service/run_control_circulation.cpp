@@ -70,6 +70,8 @@ CommandResult RunControl::on_set_circulation(const Args& a) {
 }
 
 void RunControl::follow_contraction_rate() {
+  // The accurate tier is rebuilt from the running scene, whose loop reads the new rate.
+  if (engine_->real_time() == nullptr) return;
   const core::Model& model = engine_->model();
   if (!model.circulation.enabled() || !model.contraction.enabled() || circulation_section()["heart_rate"]) return;
   cc::Parameters p = model.circulation.parameters;

@@ -156,3 +156,30 @@ TEST(RunControlCirculation, OneHeartRateForLoopAndContraction) {
 
 }  // namespace
 }  // namespace fiberfem::service
+
+namespace fiberfem::service {
+namespace {
+
+// The accurate tier couples a circulation but does not steer one yet: set_circulation is
+// refused by name (the engine interface's default), while set_contraction's rate still
+// reaches its loop (the accurate engine is rebuilt from the running scene).
+TEST(RunControlCirculation, TheAccurateTierRefusesItAndChangesNothing) {
+  std::string text = ventricle_text();
+  const std::string linear = "material: {E_L: 60.0e3, E_T: 20.0e3, nu_LT: 0.4, nu_T: 0.45, G_L: 8.0e3, density: 1060.0}";
+  ASSERT_NE(text.find(linear), std::string::npos);
+  text.replace(text.find(linear), linear.size(), "material: {law: neo_hookean, E: 40000.0, nu: 0.3, density: 1060.0}");
+  text.replace(text.find("pressure: 0.1,"), 14, "pressure: 0.00125,");
+  RunControl rc(io::parse_scene(text, "accurate-ventricle"));
+  ASSERT_NE(rc.engine().accurate(), nullptr);
+  ASSERT_TRUE(rc.engine().model().circulation.enabled());
+  const std::string state = rc.parameter_state_json();
+  const CommandResult r = rc.apply("set_circulation", R"({"systemic": {"arteries": {"resistance": 2.4}}})");
+  EXPECT_FALSE(r.accepted);
+  EXPECT_NE(r.reason.find("cannot steer a circulation"), std::string::npos) << r.reason;
+  EXPECT_EQ(rc.parameter_state_json(), state);
+  const CommandResult rate = rc.apply("set_contraction", R"({"heart_rate": 80})");
+  EXPECT_TRUE(rate.accepted) << rate.reason;
+}
+
+}  // namespace
+}  // namespace fiberfem::service
