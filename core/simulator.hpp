@@ -192,6 +192,14 @@ class Simulator {
   void set_contraction(Contraction contraction);
   /// Time the contraction schedule counts beats from, s (0 unless set_contraction moved it).
   double contraction_origin_s() const { return st_.contraction_origin_s; }
+  /// Replaces the lumped circulation's parameters (Model::circulation.parameters) between
+  /// steps. The loop's state carries over as it is (chamber volumes, compartment pressures
+  /// and flows), so the next step starts from the pressures the last one reached. A new
+  /// beat period keeps the beat under way (circulation::continued_beat_origin). The chambers
+  /// of the coupled cavities stay the mesh's (their entries in `p` are not used).
+  /// @throws std::invalid_argument without a circulation or when `p` is invalid
+  /// (Parameters::validate); nothing changes then.
+  void set_circulation_parameters(circulation::Parameters p);
 
  private:
   // The step (simulator_step.cpp).

@@ -66,6 +66,15 @@ void Simulator::reset_circulation() {
   st_.circulation_iterations = 0;
 }
 
+void Simulator::set_circulation_parameters(circulation::Parameters p) {
+  circulation::Coupling& c = model_.circulation;
+  if (!c.enabled()) throw std::invalid_argument("circulation: this model has no circulation (scene key circulation)");
+  for (const circulation::CoupledCavity& cav : c.cavities) p.chambers[static_cast<size_t>(cav.chamber)].kind = circulation::ChamberKind::external;
+  p.validate();
+  if (p.period_s != c.parameters.period_s) circulation::keep_beat_phase(st_.circulation, c.parameters.period_s);
+  c.parameters = std::move(p);
+}
+
 // The step is affine in the cavity pressures p (the follower loads are taken at the step's
 // start): v(p) = v(p*) + sum_k (p_k - p*_k) s_k with A s_k = h g_k, g_k the forces of a unit
 // pressure on cavity k. One solve at the predicted pressures p* (the last step's) and one

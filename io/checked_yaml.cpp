@@ -48,6 +48,28 @@ std::string emit(const YAML::Node& node) {
   return e.c_str();
 }
 
+void set_key_path(YAML::Node node, const std::string& path, double value) {
+  // yaml-cpp's assignment copies content into a node; a chain of handles walks instead.
+  std::vector<YAML::Node> chain{node};
+  size_t start = 0;
+  for (size_t dot = path.find('.'); dot != std::string::npos; start = dot + 1, dot = path.find('.', start))
+    chain.push_back(chain.back()[path.substr(start, dot - start)]);
+  chain.back()[path.substr(start)] = value;
+}
+
+void collect_numbers(const YAML::Node& node, const std::string& prefix, std::map<std::string, double>& out) {
+  if (node.IsMap()) {
+    for (const auto& kv : node) {
+      const std::string key = kv.first.as<std::string>();
+      collect_numbers(kv.second, prefix.empty() ? key : prefix + "." + key, out);
+    }
+    return;
+  }
+  double v = 0;
+  if (!node.IsScalar() || !YAML::convert<double>::decode(node, v)) throw ArgumentError("'" + prefix + "' must be a number");
+  out[prefix] = v;
+}
+
 Checks::Checks(std::string origin, Dialect dialect, std::vector<std::string> overridden)
     : origin_(std::move(origin)), dialect_(dialect), overridden_(std::move(overridden)) {}
 

@@ -10,6 +10,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -115,5 +116,12 @@ class CheckedMap {
 
 /// `node` as YAML text (block style).
 std::string emit(const YAML::Node& node);
+
+/// Sets the number at a dotted key path below `node` ("systemic.arteries.resistance"),
+/// making the mappings on the way.
+void set_key_path(YAML::Node node, const std::string& path, double value);
+/// Every scalar below `node` as a number by its dotted key path (prefixed by `prefix`).
+/// @throws ArgumentError for a list or a scalar that is not a number, naming its path.
+void collect_numbers(const YAML::Node& node, const std::string& prefix, std::map<std::string, double>& out);
 
 }  // namespace fiberfem::io

@@ -169,6 +169,7 @@ std::string write_scene_parameters(const std::string& scene_yaml, const ScenePar
   if (p.gravity_m_s2) doc["loads"]["gravity"] = detail::flow_vec3(*p.gravity_m_s2);
   const YAML::Node solver = write_solver(p.solver);
   if (solver.size() > 0) doc["solver"] = solver;
+  for (const auto& [path, value] : p.circulation) set_key_path(doc["circulation"], path, value);
   return emit(doc);
 }
 

@@ -7,7 +7,8 @@
 #include <algorithm>
 #include <cmath>
 
-namespace fiberfem::io::detail {
+namespace fiberfem::io {
+namespace detail {
 
 namespace {
 
@@ -46,13 +47,13 @@ void read_compartment(const CheckedMap& side, const std::string& key, cc::Compar
 
 void read_loop(const CheckedMap& c, cc::Parameters& p) {
   if (c.has("chambers")) {
-    const CheckedMap cm(c.checks(), c["chambers"], "circulation.chambers",
+    const CheckedMap cm(c.checks(), c["chambers"], c.sub("chambers"),
                         {kChamberKeys[0], kChamberKeys[1], kChamberKeys[2], kChamberKeys[3]});
     for (int i = 0; i < 4; ++i)
       if (cm.has(kChamberKeys[i])) read_chamber(cm, kChamberKeys[i], p.chambers[static_cast<size_t>(i)]);
   }
   if (c.has("valves")) {
-    const CheckedMap vm(c.checks(), c["valves"], "circulation.valves", {kValveKeys[0], kValveKeys[1], kValveKeys[2], kValveKeys[3]});
+    const CheckedMap vm(c.checks(), c["valves"], c.sub("valves"), {kValveKeys[0], kValveKeys[1], kValveKeys[2], kValveKeys[3]});
     for (int i = 0; i < 4; ++i) {
       if (!vm.has(kValveKeys[i])) continue;
       const CheckedMap v(c.checks(), vm[kValveKeys[i]], vm.sub(kValveKeys[i]), {"R_min", "R_max"});
@@ -119,23 +120,17 @@ void read_ventricles(const CheckedMap& c, const std::vector<CavityMeasure>& cavi
 
 void read_circulation(const CheckedMap& top, const std::vector<CavityMeasure>& cavities, bool accurate, core::Model& model) {
   const Checks& checks = top.checks();
-  const CheckedMap c(checks, top["circulation"], "circulation",
-                     {"ventricles", "heart_rate", "scale", "chambers", "valves", "systemic", "pulmonary", "initial",
-                      "volume_tolerance", "max_iterations"});
+  const CheckedMap c(checks, top["circulation"], "circulation", circulation_keys());
   if (!c.has("ventricles")) c.fail("needs ventricles: {left: CAVITY, right: CAVITY} (names from measure.cavities)");
   cc::Coupling coupling;
   read_ventricles(c, cavities, model, coupling);
-  cc::Parameters& p = coupling.parameters;
-  // The loop beats with the contraction unless told otherwise.
-  if (c.has("heart_rate")) p.period_s = 60.0 / c.number("heart_rate", 1, 600);
-  else if (model.contraction.enabled()) p.period_s = model.contraction.period_s;
-  read_loop(c, p);
+  model.circulation.cavities = coupling.cavities;  // the loop's reader makes their chambers external
+  coupling.parameters = read_circulation_loop(c, model);
   if (c.has("initial")) read_initial(c, coupling.initial);
   if (c.has("scale")) {
     const CheckedMap s(checks, c["scale"], "circulation.scale", {"pressure", "volume"});
     const double ps = s.has("pressure") ? s.number("pressure", 0, 1e3, true) : 1.0;
     const double vs = s.has("volume") ? s.number("volume", 0, 1e3, true) : 1.0;
-    p.scale(ps, vs);
     for (double& v : coupling.initial.volume_m3) v *= vs;
     for (double& pr : coupling.initial.pressure_pa) pr *= ps;
     for (double& q : coupling.initial.flow_m3_s) q *= vs;
@@ -145,14 +140,40 @@ void read_circulation(const CheckedMap& top, const std::vector<CavityMeasure>& c
   if (accurate) coupling.volume_tolerance = kAccurateVolumeTolerance;
   if (c.has("volume_tolerance")) coupling.volume_tolerance = c.number("volume_tolerance", 0, 1e-3, true);
   if (c.has("max_iterations")) coupling.max_iterations = c.integer("max_iterations", 1, 200);
-  for (const cc::CoupledCavity& cav : coupling.cavities) p.chambers[static_cast<size_t>(cav.chamber)].kind = cc::ChamberKind::external;
+  model.circulation = std::move(coupling);
+}
+
+}  // namespace detail
+
+namespace cc = core::circulation;
+
+const std::vector<std::string>& circulation_keys() {
+  static const std::vector<std::string> keys = {"ventricles", "heart_rate", "scale",   "chambers",         "valves",
+                                                "systemic",   "pulmonary",  "initial", "volume_tolerance", "max_iterations"};
+  return keys;
+}
+
+core::circulation::Parameters read_circulation_loop(const CheckedMap& c, const core::Model& model) {
+  cc::Parameters p;
+  // The loop beats with the contraction unless told otherwise.
+  if (c.has("heart_rate")) p.period_s = 60.0 / c.number("heart_rate", 1, 600);
+  else if (model.contraction.enabled()) p.period_s = model.contraction.period_s;
+  detail::read_loop(c, p);
+  if (c.has("scale")) {
+    const CheckedMap s(c.checks(), c["scale"], c.sub("scale"), {"pressure", "volume"});
+    p.scale(s.has("pressure") ? s.number("pressure", 0, 1e3, true) : 1.0, s.has("volume") ? s.number("volume", 0, 1e3, true) : 1.0);
+  }
+  for (const cc::CoupledCavity& cav : model.circulation.cavities)
+    p.chambers[static_cast<size_t>(cav.chamber)].kind = cc::ChamberKind::external;
   try {
     p.validate();
   } catch (const std::invalid_argument& e) {
     // "circulation: systemic.veins.compliance must be > 0" names the key already.
-    c.fail(std::string(e.what()).substr(std::string("circulation: ").size()));
+    const std::string what = std::string(e.what()).substr(std::string("circulation: ").size());
+    if (c.checks().dialect() == Dialect::arguments) throw ArgumentError(what);
+    c.fail(what);
   }
-  model.circulation = std::move(coupling);
+  return p;
 }
 
-}  // namespace fiberfem::io::detail
+}  // namespace fiberfem::io

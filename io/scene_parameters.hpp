@@ -13,6 +13,7 @@
 #include "core/model.hpp"
 #include "core/rotation.hpp"
 
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -126,6 +127,10 @@ struct SceneParameters {
   std::optional<ContractionSpec> contraction;  ///< Absent: no contraction.
   std::optional<core::Vec3> gravity_m_s2;      ///< loads.gravity, when given.
   SolverSpec solver;
+  /// Keys of the `circulation` section set by set_circulation commands, by their path
+  /// below it ("heart_rate", "systemic.arteries.resistance", ...) in the scene's units
+  /// (docs/circulation.md); written over the scene's section. Empty for a scene as loaded.
+  std::map<std::string, double> circulation;
 };
 
 }  // namespace fiberfem::io

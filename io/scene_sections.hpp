@@ -91,9 +91,19 @@ YAML::Node write_solver(const SolverSpec& spec);
 /// The engine settings for `spec` over `base` (defaults, or a fidelity preset's).
 core::SimulatorSettings solver_settings(const SolverSpec& spec, core::SimulatorSettings base);
 
+/// The keys of the `circulation` section (docs/circulation.md).
+const std::vector<std::string>& circulation_keys();
+/// The lumped loop's parameters from a `circulation` mapping `c` (the scene's section, or a
+/// set_circulation command's keys merged into it), in SI units: heart_rate (default: the
+/// contraction's, 75 beats/min without one), chambers, valves, systemic, pulmonary, all
+/// multiplied by scale; the chambers of model.circulation.cavities are the mesh's
+/// (ChamberKind::external). The other keys are the caller's.
+/// @throws the dialect's error naming the key (validated whole).
+core::circulation::Parameters read_circulation_loop(const CheckedMap& c, const core::Model& model);
+
 /// The scene text `scene_yaml` with its parameter sections written from `parameters`
-/// (regions[i].material and .damping, fibers, contraction, loads.gravity, solver); the
-/// other keys as they are.
+/// (regions[i].material and .damping, fibers, contraction, loads.gravity, solver, the
+/// circulation keys set by commands); the other keys as they are.
 std::string write_scene_parameters(const std::string& scene_yaml, const SceneParameters& parameters);
 
 }  // namespace fiberfem::io

@@ -13,6 +13,10 @@ const std::vector<double>& Engine::coupled_cavity_volumes() const {
   return none;
 }
 
+void Engine::set_circulation_parameters(const core::circulation::Parameters&) {
+  throw std::invalid_argument("this run's tier cannot steer a circulation (the real-time tier can)");
+}
+
 RealTimeEngine::RealTimeEngine(const io::Scene& scene)
     : owned_(std::make_unique<core::Simulator>(scene.model, scene.settings)), sim_(*owned_) {}
 

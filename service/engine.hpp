@@ -60,6 +60,12 @@ class Engine {
   virtual const std::vector<double>& coupled_cavity_volumes() const;
   /// Newton iterations on the cavity pressures in the last step; 0 without a circulation.
   virtual int circulation_iterations() const { return 0; }
+  /// Replaces the circulation's parameters between steps, the loop's state carried over
+  /// (core::Simulator::set_circulation_parameters: pressures, volumes and flows go on from
+  /// where they are; a new heart rate keeps the beat under way).
+  /// @throws std::invalid_argument, changing nothing: without a circulation, for invalid
+  /// parameters, and on an engine that cannot steer one (the default).
+  virtual void set_circulation_parameters(const core::circulation::Parameters& p);
 
   /// The real-time simulator, or nullptr on the accurate tier.
   virtual core::Simulator* real_time() { return nullptr; }
@@ -93,6 +99,7 @@ class RealTimeEngine final : public Engine {
   }
   const std::vector<double>& coupled_cavity_volumes() const override { return sim_.coupled_cavity_volumes(); }
   int circulation_iterations() const override { return sim_.circulation_iterations(); }
+  void set_circulation_parameters(const core::circulation::Parameters& p) override { sim_.set_circulation_parameters(p); }
   core::Simulator* real_time() override { return &sim_; }
 
  private:

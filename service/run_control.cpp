@@ -111,6 +111,7 @@ const std::vector<RunControl::Entry>& RunControl::table() {
         {"set_time_step", {"dt"}, &RunControl::on_set_time_step, true},
         {"set_solver", {"method", "tolerance", "max_iterations", "preconditioner", "rotation", "recycled_solutions"},
          &RunControl::on_set_solver, true},
+        {"set_circulation", {"heart_rate", "chambers", "valves", "systemic", "pulmonary"}, &RunControl::on_set_circulation, true},
         {"checkpoint", {"name"}, &RunControl::on_checkpoint, true},
         {"restore", {"name"}, &RunControl::on_restore, true},
         {"start_recording", {}, nullptr, false},

@@ -22,6 +22,10 @@
 #include <string>
 #include <vector>
 
+namespace YAML {
+class Node;
+}
+
 namespace fiberfem::service {
 
 namespace detail {
@@ -126,6 +130,12 @@ class RunControl {
   CommandResult on_set_gravity(const detail::Args& a);
   CommandResult on_set_time_step(const detail::Args& a);
   CommandResult on_set_solver(const detail::Args& a);
+  CommandResult on_set_circulation(const detail::Args& a);  // run_control_circulation.cpp
+  // The running circulation section: the scene's, with the keys commands set.
+  YAML::Node circulation_section() const;
+  // A loop that beats with the contraction (no circulation.heart_rate given) takes the
+  // contraction's new period, keeping its beat's phase (after set_contraction).
+  void follow_contraction_rate();
   RecordingHandler recording_;
   void refresh_loads();
   // The accurate engine built again from the running scene (its state carried over) after

@@ -97,6 +97,7 @@ CommandResult RunControl::on_set_contraction(const Args& a) {
   core::Contraction c =
       io::read_contraction(io::Checks("set_contraction"), a.node(), engine_->model().mesh, scene_.region_names, spec);
   if (core::Simulator* sim = engine_->real_time()) sim->set_contraction(std::move(c));
+  follow_contraction_rate();
   io::SceneParameters before = params_;
   params_.contraction = spec;
   rebuild_accurate(std::move(before));

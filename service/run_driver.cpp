@@ -9,6 +9,8 @@ class ArchiveWriter {};  // never made: recording refuses in a build without HDF
 }  // namespace fiberfem::archive
 #endif
 
+#include <nlohmann/json.hpp>
+
 #include <chrono>
 #include <cstdlib>
 #include <stdexcept>
@@ -32,12 +34,21 @@ bool has_archive() {
 #endif
 }
 
-io::Scene scene_from_archive(const std::string& h5_path, const std::vector<std::string>& overrides) {
+io::Scene scene_from_archive(const std::string& h5_path, const std::vector<std::string>& overrides,
+                             std::optional<double> resume_s) {
 #ifdef FIBERFEM_HAVE_ARCHIVE
   const archive::ArchiveReader r(h5_path);
-  return io::parse_scene(r.header().scene_yaml, "archive:" + h5_path, r.header().scene_base_dir, overrides);
+  std::string yaml = r.header().scene_yaml;
+  if (resume_s) {  // a served run's checkpoint holds its running scene (RunControl::parameter_state_json)
+    std::string params;
+    r.read_engine_checkpoint(r.checkpoint_at_or_before(*resume_s), &params);
+    const nlohmann::json state = nlohmann::json::parse(params, nullptr, false);
+    if (state.is_object() && state.contains("scene_yaml")) yaml = state["scene_yaml"].get<std::string>();
+  }
+  return io::parse_scene(yaml, "archive:" + h5_path, r.header().scene_base_dir, overrides);
 #else
   (void)overrides;
+  (void)resume_s;
   throw std::runtime_error("cannot read '" + h5_path + "': this fiberfem was built without HDF5 (FIBERFEM_WITH_HDF5)");
 #endif
 }

@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -28,9 +29,12 @@ namespace fiberfem::service {
 bool has_archive();
 
 /// The scene stored in an archive (its YAML after the original overrides, looked up from
-/// its original directory), with `overrides` applied.
+/// its original directory), with `overrides` applied. With `resume_s` (a resume from the
+/// last checkpoint at or before it): the scene as the run had it at that checkpoint, when
+/// the checkpoint carries one (a served run's: its parameter commands written in).
 /// @throws std::runtime_error if the file is not a readable archive or the build has none.
-io::Scene scene_from_archive(const std::string& h5_path, const std::vector<std::string>& overrides);
+io::Scene scene_from_archive(const std::string& h5_path, const std::vector<std::string>& overrides,
+                             std::optional<double> resume_s = std::nullopt);
 
 /// Where a run starts: from rest, or from an archive's checkpoint (--resume RUN.h5[@t]).
 struct ResumeFrom {

@@ -45,13 +45,15 @@ struct NodePressures {
   std::array<double, kNodes> slope{};
 };
 
-NodePressures node_pressures(const Parameters& p, const Vec12& y, double t, const std::array<double, 2>& external) {
+// t: time since the beats' origin; previous_period: State::previous_period_s.
+NodePressures node_pressures(const Parameters& p, const Vec12& y, double t, const std::array<double, 2>& external,
+                             double previous_period) {
   NodePressures n;
   for (int c = 0; c < 4; ++c) {
     const Chamber& ch = p.chambers[static_cast<size_t>(c)];
     switch (ch.kind) {
       case ChamberKind::elastance: {
-        const double e = ch.elastance.elastance(t, p.period_s);
+        const double e = ch.elastance.elastance(t, p.period_s, previous_period);
         n.value[static_cast<size_t>(c)] = e * (y(c) - ch.elastance.rest_volume_m3);
         n.slope[static_cast<size_t>(c)] = e;
         break;
@@ -87,7 +89,7 @@ struct Linearisation {
 Linearisation linearise(const Parameters& p, const State& s0, const Vec12& y, double h, double t,
                         const std::array<double, 2>& external) {
   const Vec12 y0 = pack(s0);
-  const NodePressures pi = node_pressures(p, y, t, external);
+  const NodePressures pi = node_pressures(p, y, t, external, s0.previous_period_s);
   Linearisation L;
   L.residual.setZero();
   L.jacobian.setZero();
@@ -144,8 +146,17 @@ Vec12 row_scale(double h) {
 
 }  // namespace
 
-double Elastance::activation(double t_s, double period_s) const {
-  const auto phase = [&](double start) { return t_s - start - period_s * std::floor((t_s - start) / period_s); };
+double Elastance::activation(double t_s, double period_s, double previous_period_s) const {
+  const auto wrap = [](double x, double period) { return x - period * std::floor(x / period); };
+  // Time since the last time `start` (in the beat) came round. In the first beat after a
+  // change of period, a start still ahead in it last came round in the beat before, which
+  // lasted previous_period_s.
+  const auto phase = [&](double start) {
+    if (!(previous_period_s > 0)) return wrap(t_s - start, period_s);
+    const double x = t_s - wrap(start, period_s);
+    if (x >= 0) return wrap(x, period_s);
+    return wrap(x + previous_period_s, previous_period_s);
+  };
   double e = 0;
   const double rise = phase(onset_s);
   if (rise < contraction_s) e += 0.5 * (1 - std::cos(kPi * rise / contraction_s));
@@ -254,7 +265,7 @@ State State::regazzoni_initial() {
 }
 
 Observables observe(const Parameters& p, const State& s) {
-  const NodePressures pi = node_pressures(p, pack(s), s.time_s, s.external_pa);
+  const NodePressures pi = node_pressures(p, pack(s), s.time_s - s.beat_origin_s, s.external_pa, s.previous_period_s);
   Observables o;
   for (int c = 0; c < 4; ++c) o.chamber_pa[static_cast<size_t>(c)] = pi.value[static_cast<size_t>(c)];
   for (int v = 0; v < 4; ++v)
@@ -270,14 +281,25 @@ double total_volume(const Parameters& p, const State& s) {
   return v;
 }
 
+void keep_beat_phase(State& s, double old_period_s) {
+  const double since = s.time_s - s.beat_origin_s;
+  if (since < old_period_s) {  // still in the first beat since the origin: its start and the one before stay
+    if (!(s.previous_period_s > 0)) s.previous_period_s = old_period_s;
+    return;
+  }
+  s.beat_origin_s = s.time_s - (since - old_period_s * std::floor(since / old_period_s));
+  s.previous_period_s = old_period_s;
+}
+
 State step(const Parameters& p, const State& s, double h, const std::array<double, 2>& external_pa,
            Eigen::Matrix2d* dvolume_dexternal) {
   const double t = s.time_s + h;
+  const double t_beat = t - s.beat_origin_s;  // what the chambers' activations read
   const Vec12 D = unknown_scale(), rows = row_scale(h);
   // Newton from the old state: its total volume is the old one, and every update (whole
   // or damped) keeps it, as the volume rows of the Jacobian sum to the volume weights.
   Vec12 y = pack(s);
-  Linearisation L = linearise(p, s, y, h, t, external_pa);
+  Linearisation L = linearise(p, s, y, h, t_beat, external_pa);
   double norm = (rows.asDiagonal() * L.residual).lpNorm<Eigen::Infinity>();
   bool converged = false;
   for (int it = 0; it < 60 && !converged; ++it) {
@@ -287,7 +309,7 @@ State step(const Parameters& p, const State& s, double h, const std::array<doubl
     double alpha = 1;
     for (int k = 0; k < 30; ++k, alpha *= 0.5) {
       const Vec12 trial = y + alpha * D.cwiseProduct(dz);
-      Linearisation Lt = linearise(p, s, trial, h, t, external_pa);
+      Linearisation Lt = linearise(p, s, trial, h, t_beat, external_pa);
       const double nt = (rows.asDiagonal() * Lt.residual).lpNorm<Eigen::Infinity>();
       if (nt < norm || k == 29 || (alpha * dz).lpNorm<Eigen::Infinity>() < 1e-11) {
         y = trial;

@@ -23,9 +23,13 @@ struct Elastance {
   double onset_s = 0;          ///< Start of contraction in the beat, s.
   double contraction_s = 0.3;  ///< Duration of the rise, s (> 0).
   double relaxation_s = 0.15;  ///< Duration of the fall, s (> 0).
-  /// The activation e in [0, 1] at time t of a run beating with `period_s`.
-  double activation(double t_s, double period_s) const;
-  double elastance(double t_s, double period_s) const { return passive_pa_m3 + active_pa_m3 * activation(t_s, period_s); }
+  /// The activation e in [0, 1] at time t (since the beats' origin) of a run beating with
+  /// `period_s`; `previous_period_s` > 0: the beat before the origin lasted that long (the
+  /// period changed in the beat that began at the origin), 0: it lasted `period_s`.
+  double activation(double t_s, double period_s, double previous_period_s = 0) const;
+  double elastance(double t_s, double period_s, double previous_period_s = 0) const {
+    return passive_pa_m3 + active_pa_m3 * activation(t_s, period_s, previous_period_s);
+  }
 };
 
 /// How a chamber's pressure is given.
@@ -89,9 +93,24 @@ struct State {
   std::array<double, 4> flow_m3_s{};     ///< By CompartmentId (out of it, downstream).
   /// Pressures of the external chambers during the step that led here (lv, rv), Pa.
   std::array<double, 2> external_pa{};
+  /// Where the beats are counted from, s: the chambers' activations read the time since
+  /// then (0 unless the beat period was changed during the run: keep_beat_phase).
+  double beat_origin_s = 0;
+  /// How long the beat before the origin lasted, s (0: one period, as when none changed).
+  double previous_period_s = 0;
   /// Regazzoni et al. 2022's initial state (65/120/65/145 mL; 80/30/35/24 mmHg; no flow).
   static State regazzoni_initial();
 };
+
+/// Before the beat period changes from `old_period_s` at the state's time: moves the beats'
+/// origin to the start of the beat under way and remembers how long the beat before it
+/// lasted, so that the beat under way keeps the time since it began and every chamber's
+/// activation goes on from where it is: exactly when each chamber's onset and onset +
+/// contraction, taken modulo the period, are the same under both periods (below both, say),
+/// and when the beat under way has not passed the new period yet. The next beat starts one new
+/// period after the one under way began: the rule of core::Simulator::set_contraction, so
+/// a loop and a contraction that beat together before the change still do after it.
+void keep_beat_phase(State& s, double old_period_s);
 
 /// What a state implies: chamber pressures and valve flows at its time.
 struct Observables {

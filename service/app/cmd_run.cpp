@@ -94,7 +94,7 @@ int run_command(CLI::App& run, RunArgs& a) {
         throw std::invalid_argument("--archive must not be the archive being resumed from (" + a.archive + ")");
       if (a.scene_file.empty()) {
         o.source = "archive:" + o.resume.path;
-        return run_or_hash(service::scene_from_archive(o.resume.path, o.overrides));
+        return run_or_hash(service::scene_from_archive(o.resume.path, o.overrides, o.resume.time_s));
       }
     }
     if (!a.scene_file.empty()) {

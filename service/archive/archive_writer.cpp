@@ -443,6 +443,8 @@ json real_time_checkpoint(const core::SimulatorCheckpoint& c, Blob& b) {
           {"contraction_origin_s", c.contraction_origin_s},
           {"circulation_cavities", c.cavity_volume_m3.size()},
           {"circulation_iterations", c.circulation_iterations},
+          {"circulation_beat_origin_s", c.circulation.beat_origin_s},
+          {"circulation_previous_period_s", c.circulation.previous_period_s},
           {"solver",
            {{"name", c.solver.solver_name},
             {"history_rows", c.solver.history_rows},

@@ -99,6 +99,9 @@ core::SimulatorCheckpoint real_time_checkpoint_of(const json& h, const std::vect
     for (size_t k = 0; k < cavities; ++k)
       c.cavity_response.push_back(vector_of(section(h, data, "circulation.cavity_response" + std::to_string(k))));
     c.circulation_iterations = h.value("circulation_iterations", 0);
+    // Absent in checkpoints written before the heart rate was steerable (never changed then).
+    c.circulation.beat_origin_s = h.value("circulation_beat_origin_s", 0.0);
+    c.circulation.previous_period_s = h.value("circulation_previous_period_s", 0.0);
   }
   const json& s = h.at("solver");
   c.solver.solver_name = s.at("name");

@@ -123,3 +123,44 @@ TEST(Circulation, ValidationNamesTheParameter) {
   }
   EXPECT_NO_THROW(cc::Parameters().validate());
 }
+
+// A new beat period keeps every chamber's activation where it is (the beat under way keeps
+// the time since it began; a start still ahead in it last came round a whole old period
+// before), and the next beat starts one new period after the one under way began. Checked
+// against the activation of the schedule the chamber actually went through.
+TEST(Circulation, ANewPeriodKeepsEveryChambersActivationWhereItIs) {
+  cc::Parameters p;  // 0.8 s
+  // Every contraction's start and end in the beat below both periods (the atria's 0.8 s
+  // would wrap to another place in a beat of 0.6 s).
+  for (cc::ChamberId c : {cc::la, cc::ra}) p.chambers[c].elastance.onset_s = 0.4;
+  for (double new_period : {0.6, 1.1}) {
+    int jumps_without = 0;
+    for (double phase = 0.02; phase < std::min(0.8, new_period); phase += 0.04) {
+      cc::State s;
+      s.time_s = 2 * 0.8 + phase;  // in the third beat
+      cc::State kept = s;
+      cc::keep_beat_phase(kept, 0.8);
+      EXPECT_NEAR(kept.beat_origin_s, 1.6, 1e-12);
+      EXPECT_DOUBLE_EQ(kept.previous_period_s, 0.8);
+      for (const cc::Chamber& ch : p.chambers) {
+        const cc::Elastance& e = ch.elastance;
+        const double before = e.activation(s.time_s, 0.8);
+        EXPECT_NEAR(e.activation(kept.time_s - kept.beat_origin_s, new_period, kept.previous_period_s), before, 1e-12)
+            << "phase " << phase << " new period " << new_period;
+        // The schedule restarted at the run's time instead: the activation would jump.
+        if (std::abs(e.activation(s.time_s, new_period) - before) > 1e-3) ++jumps_without;
+        // One new period after the beat under way began, the next beat is where a beat
+        // begins (plus 0.01 s): the activation of a run that always had the new period.
+        const double next = 1.6 + new_period + 0.01;
+        EXPECT_NEAR(e.activation(next - kept.beat_origin_s, new_period, kept.previous_period_s), e.activation(0.01, new_period), 1e-12);
+      }
+    }
+    EXPECT_GT(jumps_without, 0) << "the test should see what keeping the phase avoids";
+  }
+  // A change in the first beat since the origin keeps the origin.
+  cc::State first;
+  first.time_s = 0.3;
+  cc::keep_beat_phase(first, 0.8);
+  EXPECT_EQ(first.beat_origin_s, 0.0);
+  EXPECT_EQ(first.previous_period_s, 0.8);
+}

@@ -187,3 +187,81 @@ TEST(CoupledSimulator, RefusesAnOpenCavity) {
     EXPECT_NE(std::string(e.what()).find("not closed"), std::string::npos) << e.what();
   }
 }
+
+// Steering (Simulator::set_circulation_parameters): the loop's state carries over as it is,
+// the first step after the change moves the pressure no more than a step of the unsteered
+// run ever does, blood stays conserved (a resistance holds no volume), and a tripled
+// systemic resistance raises the mean aortic pressure of the next beat.
+TEST(CoupledSimulator, SteeringCarriesTheLoopStateOverAndTakesEffect) {
+  core::Simulator steered(ventricle(true, true), direct_settings()), plain(ventricle(true, true), direct_settings());
+  const double total0 = cc::total_volume(steered.model().circulation.parameters, steered.circulation_state());
+  for (int i = 0; i < 30; ++i) {
+    ASSERT_NE(steered.step().status, core::StepStatus::failed);
+    ASSERT_NE(plain.step().status, core::StepStatus::failed);
+  }
+  cc::Parameters p = steered.model().circulation.parameters;
+  p.compartments[cc::ar_sys].resistance_pa_s_m3 *= 3;
+  steered.set_circulation_parameters(p);
+  EXPECT_EQ(steered.model().circulation.parameters.compartments[cc::ar_sys].resistance_pa_s_m3,
+            p.compartments[cc::ar_sys].resistance_pa_s_m3);
+  const cc::State& a = steered.circulation_state();
+  const cc::State& b = plain.circulation_state();
+  EXPECT_TRUE(a.pressure_pa == b.pressure_pa && a.volume_m3 == b.volume_m3 && a.flow_m3_s == b.flow_m3_s);
+  double largest_step = 0, last = b.pressure_pa[cc::ar_sys], first_gap = -1;
+  double mean_steered = 0, mean_plain = 0;
+  for (int i = 0; i < 96; ++i) {  // two beats
+    ASSERT_NE(steered.step().status, core::StepStatus::failed);
+    ASSERT_NE(plain.step().status, core::StepStatus::failed);
+    const double now = plain.circulation_state().pressure_pa[cc::ar_sys];
+    largest_step = std::max(largest_step, std::abs(now - last));
+    last = now;
+    if (first_gap < 0) first_gap = std::abs(steered.circulation_state().pressure_pa[cc::ar_sys] - now);
+    if (i >= 48) {
+      mean_steered += steered.circulation_state().pressure_pa[cc::ar_sys] / 48;
+      mean_plain += now / 48;
+    }
+    EXPECT_NEAR(cc::total_volume(steered.model().circulation.parameters, steered.circulation_state()), total0, 1e-13 * total0);
+  }
+  EXPECT_GT(first_gap, 0);
+  EXPECT_LE(first_gap, largest_step);
+  EXPECT_GT(mean_steered, 1.2 * mean_plain) << mean_steered << " vs " << mean_plain;
+
+  // Refused, nothing changed: invalid parameters, or a model without a circulation.
+  cc::Parameters bad = steered.model().circulation.parameters;
+  bad.compartments[cc::ven_sys].compliance_m3_pa = -1;
+  try {
+    steered.set_circulation_parameters(bad);
+    ADD_FAILURE() << "accepted a negative compliance";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("systemic.veins.compliance"), std::string::npos) << e.what();
+  }
+  EXPECT_GT(steered.model().circulation.parameters.compartments[cc::ven_sys].compliance_m3_pa, 0);
+  core::Simulator uncoupled(ventricle(true, false), direct_settings());
+  EXPECT_THROW(uncoupled.set_circulation_parameters(cc::Parameters{}), std::invalid_argument);
+}
+
+// A new heart rate keeps the beat under way: set with the contraction's at the same step
+// boundary, the chambers' pressures are those of just before (the lumped right ventricle is
+// relaxing, the atria resting), and loop and contraction count their next beats from the
+// same time (the beat under way began at 0.8 s).
+TEST(CoupledSimulator, ANewHeartRateKeepsTheBeatUnderWayForLoopAndContraction) {
+  core::Model m = ventricle(true, true);
+  for (cc::ChamberId c : {cc::la, cc::ra}) m.circulation.parameters.chambers[c].elastance.onset_s = 0.4;
+  core::Simulator sim(std::move(m), direct_settings());
+  for (int i = 0; i < 75; ++i) ASSERT_NE(sim.step().status, core::StepStatus::failed);  // 1.25 s: 0.45 s into beat 2
+  const cc::Observables before = cc::observe(sim.model().circulation.parameters, sim.circulation_state());
+  cc::Parameters p = sim.model().circulation.parameters;
+  p.period_s = 0.6;
+  sim.set_circulation_parameters(p);
+  core::Contraction c = sim.model().contraction;
+  c.period_s = 0.6;
+  sim.set_contraction(c);
+  const cc::Observables after = cc::observe(sim.model().circulation.parameters, sim.circulation_state());
+  for (int k : {cc::la, cc::ra, cc::rv}) EXPECT_NEAR(after.chamber_pa[k], before.chamber_pa[k], 1e-9 * std::abs(before.chamber_pa[k]) + 1e-9);
+  EXPECT_GT(before.chamber_pa[cc::rv], 0);
+  const double loop_origin = sim.circulation_state().beat_origin_s;
+  EXPECT_NEAR(loop_origin, 0.8, 1e-9);
+  const double beats = (loop_origin - sim.contraction_origin_s()) / 0.6;
+  EXPECT_NEAR(beats, std::round(beats), 1e-9);
+  for (int i = 0; i < 72; ++i) ASSERT_NE(sim.step().status, core::StepStatus::failed);  // two beats at the new rate
+}

@@ -96,7 +96,8 @@ def _last_beat_ef(report):
     return (beats[-1] if beats else cav[0]).get("ejection_fraction")
 
 
-ARCHIVE_ERRORS = ("probe", "l2", "volume", "phase")  # need both runs' archives; "ef" and "settled" the reports only
+# Need both runs' archives; the others ("ef", "settled", the circulation's) the reports only.
+ARCHIVE_ERRORS = ("probe", "l2", "volume", "phase")
 
 
 def _final_probe_displacement(report):
@@ -106,9 +107,41 @@ def _final_probe_displacement(report):
     return np.asarray(probes[0]["final_m"], dtype=np.float64) - np.asarray(probes[0]["rest_m"], dtype=np.float64)
 
 
-def report_error_measures(run_report, ref_report, wanted) -> dict:
-    """The error columns that come from the two reports alone ("ef", "settled")."""
+def _last_circulation_beat(report):
+    """The left ventricle of the last complete beat of the report's circulation, or None."""
+    beats = [b for b in ((report or {}).get("circulation") or {}).get("beats", []) if b.get("complete")]
+    return beats[-1]["lv"] if beats else None
+
+
+def _circulation_errors(run_report, ref_report, wanted) -> dict:
+    """Relative errors (fractions of the reference's) of the LV's end-diastolic and
+    end-systolic volumes, stroke volume and peak pressure in the last complete beat; the
+    ejection fraction's in percentage points; pv_loop_err the largest of the four relative
+    errors. NaN without a circulation."""
+    lv, ref = _last_circulation_beat(run_report), _last_circulation_beat(ref_report)
+    keys = {"edv_err": "end_diastolic_volume_m3", "esv_err": "end_systolic_volume_m3",
+            "stroke_volume_err": "stroke_volume_m3", "peak_lv_pressure_err": "peak_pressure_pa"}
+    if lv is None or ref is None:
+        rel = {c: math.nan for c in keys}
+        ef_pp = math.nan
+    else:
+        rel = {c: abs(lv[k] - ref[k]) / abs(ref[k]) if ref[k] else math.nan for c, k in keys.items()}
+        ef_pp = 100.0 * (lv["ejection_fraction"] - ref["ejection_fraction"])
     out = {}
+    if "pv_loop" in wanted:
+        worst = math.nan if any(math.isnan(v) for v in rel.values()) else max(rel.values())
+        out.update(pv_loop_err=worst, edv_err=rel["edv_err"], esv_err=rel["esv_err"], lv_ef_err_pp=ef_pp)
+    if "stroke_volume" in wanted:
+        out["stroke_volume_err"] = rel["stroke_volume_err"]
+    if "peak_lv_pressure" in wanted:
+        out["peak_lv_pressure_err"] = rel["peak_lv_pressure_err"]
+    return out
+
+
+def report_error_measures(run_report, ref_report, wanted) -> dict:
+    """The error columns that come from the two reports alone ("ef", "settled", and the
+    circulation's "pv_loop", "stroke_volume", "peak_lv_pressure")."""
+    out = _circulation_errors(run_report, ref_report, wanted)
     if "ef" in wanted:
         ef, efr = _last_beat_ef(run_report), _last_beat_ef(ref_report)
         out["ef_err_pp"] = 100.0 * (ef - efr) if ef is not None and efr is not None else math.nan

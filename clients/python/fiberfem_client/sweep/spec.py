@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import yaml
 
-from .columns import COST_MEASURES, ERROR_MEASURES
+from .columns import COST_MEASURES, DEFAULT_ERRORS, ERROR_MEASURES
 
 
 class SweepFileError(ValueError):
@@ -353,7 +353,7 @@ def _parse(doc, path) -> Sweep:
     sw = Sweep(name=name, path=os.path.abspath(path), scene=scene,
                base_set=_scene_keys(doc.get("set", {}), "set"))
     sw.groups = _groups(doc["groups"])
-    sw.errors = list(doc.get("errors", ERROR_MEASURES if "reference" in doc else []))
+    sw.errors = list(doc.get("errors", DEFAULT_ERRORS if "reference" in doc else []))
     for i, e in enumerate(sw.errors):
         if e not in ERROR_MEASURES:
             _fail(f"errors[{i}]", f"unknown error measure {e!r} (known: {', '.join(ERROR_MEASURES)})")
