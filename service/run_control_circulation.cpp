@@ -60,6 +60,15 @@ CommandResult RunControl::on_set_circulation(const Args& a) {
     rate["heart_rate"] = given["heart_rate"];
     contraction = io::read_contraction(a.checks(), rate, model.mesh, scene_.region_names, spec);
   }
+  if (engine_->accurate() != nullptr) {
+    // The accurate tier is rebuilt from the running scene, which reads the steered keys;
+    // the loop's state carries over (AccurateEngine::rebuilt), its beat phase kept.
+    io::SceneParameters before = params_;
+    if (contraction) params_.contraction = spec;
+    for (const auto& [path, value] : given) params_.circulation[path] = value;
+    rebuild_accurate(std::move(before));
+    return {true, "circulation set (" + std::to_string(given.size()) + " key(s))"};
+  }
   engine_->set_circulation_parameters(p);
   if (contraction) {
     simulator().set_contraction(std::move(*contraction));

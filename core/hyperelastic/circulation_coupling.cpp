@@ -116,6 +116,8 @@ void CirculationCoupledDynamics::restore(const DynamicState& s) {
 void CirculationCoupledDynamics::continue_from(const CirculationCoupledDynamics& previous) {
   if (previous.cavities_.size() != cavities_.size()) throw std::invalid_argument("circulation: another set of coupled cavities");
   state_ = previous.state_;
+  // A new heart rate: the beat under way keeps its time (as the real-time tier's).
+  if (parameters_.period_s != previous.parameters_.period_s) circulation::keep_beat_phase(state_, previous.parameters_.period_s);
   volumes_ = previous.volumes_;
 }
 

@@ -55,8 +55,9 @@ class CirculationCoupledDynamics {
   /// without cavity volumes (of an uncoupled run) is refused.
   /// @throws std::invalid_argument naming what does not fit (nothing changes then).
   void restore(const DynamicState& s);
-  /// Carries `previous`'s loop state and volumes over (its solver's state is the
-  /// caller's to carry: DynamicSolver::continue_from).
+  /// Carries `previous`'s loop state and volumes over, under this coupling's parameters
+  /// (a changed beat period keeps the beat under way: circulation::keep_beat_phase); its
+  /// solver's state is the caller's to carry (DynamicSolver::continue_from).
   void continue_from(const CirculationCoupledDynamics& previous);
 
  private:

@@ -160,25 +160,39 @@ TEST(RunControlCirculation, OneHeartRateForLoopAndContraction) {
 namespace fiberfem::service {
 namespace {
 
-// The accurate tier couples a circulation but does not steer one yet: set_circulation is
-// refused by name (the engine interface's default), while set_contraction's rate still
-// reaches its loop (the accurate engine is rebuilt from the running scene).
-TEST(RunControlCirculation, TheAccurateTierRefusesItAndChangesNothing) {
+// The accurate tier steers its circulation by rebuilding its engine from the running scene
+// (which reads the steered keys): the loop's state carries over unchanged, the new
+// resistance is the loop's from then on and raises the aortic pressure against an
+// unsteered run; a bad value is refused and changes nothing.
+TEST(RunControlCirculation, TheAccurateTierSteersItsLoopKeepingItsState) {
   std::string text = ventricle_text();
   const std::string linear = "material: {E_L: 60.0e3, E_T: 20.0e3, nu_LT: 0.4, nu_T: 0.45, G_L: 8.0e3, density: 1060.0}";
   ASSERT_NE(text.find(linear), std::string::npos);
   text.replace(text.find(linear), linear.size(), "material: {law: neo_hookean, E: 40000.0, nu: 0.3, density: 1060.0}");
   text.replace(text.find("pressure: 0.1,"), 14, "pressure: 0.00125,");
-  RunControl rc(io::parse_scene(text, "accurate-ventricle"));
-  ASSERT_NE(rc.engine().accurate(), nullptr);
-  ASSERT_TRUE(rc.engine().model().circulation.enabled());
-  const std::string state = rc.parameter_state_json();
-  const CommandResult r = rc.apply("set_circulation", R"({"systemic": {"arteries": {"resistance": 2.4}}})");
-  EXPECT_FALSE(r.accepted);
-  EXPECT_NE(r.reason.find("cannot steer a circulation"), std::string::npos) << r.reason;
-  EXPECT_EQ(rc.parameter_state_json(), state);
-  const CommandResult rate = rc.apply("set_contraction", R"({"heart_rate": 80})");
-  EXPECT_TRUE(rate.accepted) << rate.reason;
+  RunControl steered(io::parse_scene(text, "accurate-ventricle")), plain(io::parse_scene(text, "accurate-ventricle"));
+  ASSERT_NE(steered.engine().accurate(), nullptr);
+  ASSERT_TRUE(steered.engine().model().circulation.enabled());
+  run(steered, 10);
+  run(plain, 10);
+  const cc::State before = *steered.engine().circulation_state();
+  const double r0 = steered.engine().model().circulation.parameters.compartments[cc::ar_sys].resistance_pa_s_m3;
+  const std::string state = steered.parameter_state_json();
+  const CommandResult bad = steered.apply("set_circulation", R"({"systemic": {"arteries": {"compliance": -1.2}}})");
+  EXPECT_FALSE(bad.accepted);
+  EXPECT_NE(bad.reason.find("'systemic.arteries.compliance'"), std::string::npos) << bad.reason;
+  EXPECT_EQ(steered.parameter_state_json(), state);
+  const CommandResult r = steered.apply("set_circulation", R"({"systemic": {"arteries": {"resistance": 2.4}}})");
+  ASSERT_TRUE(r.accepted) << r.reason;
+  const cc::State& after = *steered.engine().circulation_state();
+  EXPECT_EQ(after.volume_m3, before.volume_m3);
+  EXPECT_EQ(after.pressure_pa, before.pressure_pa);
+  EXPECT_EQ(after.flow_m3_s, before.flow_m3_s);
+  EXPECT_NEAR(steered.engine().model().circulation.parameters.compartments[cc::ar_sys].resistance_pa_s_m3 / r0, 3.0, 1e-12);
+  EXPECT_EQ(steered.engine().step_count(), 10);
+  run(steered, 40);
+  run(plain, 40);
+  EXPECT_GT(aortic_pa(steered), 1.2 * aortic_pa(plain));
 }
 
 }  // namespace
