@@ -53,15 +53,22 @@ DynamicStepReport DynamicSolver::solve_step(const Loading& loading, Positions& x
   NewtonReport counters;
   bool singular = false;
   const bool converged = newton_iterate(assembler_, linear_, residual, settings_.newton, x, p, R, K_, ev, counters, singular);
+  return finish_solve(counters, converged, singular);
+}
+
+DynamicStepReport DynamicSolver::finish_solve(const NewtonReport& counters, bool converged, bool singular) {
   totals_.iterations += counters.iterations;
   totals_.assembly_s += counters.assembly_s;
   DynamicStepReport rep;
   rep.iterations = counters.iterations;
   rep.converged = converged;
-  if (!converged)
-    rep.message = singular ? "the step's tangent is singular"
-                           : "Newton did not converge in " + std::to_string(settings_.newton.max_iterations) +
-                                 " iterations (a smaller solver.dt, or a softer load)";
+  if (converged) return rep;
+  // Newton's own message says why where it has one (not the round-off floor's note).
+  if (singular) rep.message = "the step's tangent is singular";
+  else if (!counters.message.empty() && counters.message.find("round-off") == std::string::npos) rep.message = counters.message;
+  else
+    rep.message = "Newton did not converge in " + std::to_string(settings_.newton.max_iterations) +
+                  " iterations (a smaller solver.dt, or a softer load)";
   return rep;
 }
 
@@ -92,18 +99,7 @@ DynamicStepReport DynamicSolver::solve_step_bordered(Loading loading, const std:
   } catch (const std::runtime_error& e) {  // the constraints could not be evaluated
     counters.message = e.what();
   }
-  totals_.iterations += counters.iterations;
-  totals_.assembly_s += counters.assembly_s;
-  DynamicStepReport rep;
-  rep.iterations = counters.iterations;
-  rep.converged = converged;
-  if (!converged)
-    rep.message = singular ? "the step's tangent is singular"
-                  : !counters.message.empty() && counters.message.find("round-off") == std::string::npos
-                      ? counters.message
-                      : "Newton did not converge in " + std::to_string(settings_.newton.max_iterations) +
-                            " iterations (a smaller solver.dt, or a softer load)";
-  return rep;
+  return finish_solve(counters, converged, singular);
 }
 
 void DynamicSolver::accept_step(const Positions& x, const Eigen::VectorXd& p) {

@@ -101,6 +101,9 @@ class DynamicSolver {
   NewtonReport totals() const;
 
  private:
+  // A solve's counters into the totals, and its report (why it failed, if it did).
+  DynamicStepReport finish_solve(const NewtonReport& counters, bool converged, bool singular);
+
   const Problem& problem_;
   DynamicSettings settings_;
   Assembler assembler_;

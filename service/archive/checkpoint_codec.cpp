@@ -42,6 +42,22 @@ core::hyperelastic::SparseMatrix sparse_of(const json& h, const std::vector<doub
   return m;
 }
 
+// A run with a circulation (either tier): the loop's state and the coupled cavities'
+// volumes; returns how many cavities (0, nothing read, without a circulation).
+size_t read_circulation(const json& h, const std::vector<double>& data, core::circulation::State& loop,
+                        std::vector<double>& volumes) {
+  const size_t cavities = h.value("circulation_cavities", size_t{0});
+  if (cavities == 0) return 0;
+  loop = circulation_state_of(section(h, data, "circulation.state"));
+  const Section v = section(h, data, "circulation.cavity_volume_m3");
+  if (v.n != cavities) throw std::runtime_error("archive: checkpoint section 'circulation.cavity_volume_m3' has the wrong size");
+  volumes.assign(v.p, v.p + v.n);
+  // Absent in checkpoints written before the heart rate was steerable (never changed then).
+  loop.beat_origin_s = h.value("circulation_beat_origin_s", 0.0);
+  loop.previous_period_s = h.value("circulation_previous_period_s", 0.0);
+  return cavities;
+}
+
 core::hyperelastic::DynamicState accurate_checkpoint_of(const json& h, const std::vector<double>& data) {
   core::hyperelastic::DynamicState c;
   c.time_s = h.at("time_s");
@@ -55,13 +71,7 @@ core::hyperelastic::DynamicState accurate_checkpoint_of(const json& h, const std
   c.p = vector_of(section(h, data, "p"));
   c.linear.analysed = sparse_of(h, data, "linear.analysed");
   c.linear.factored = sparse_of(h, data, "linear.factored");
-  const size_t cavities = h.value("circulation_cavities", size_t{0});
-  if (cavities > 0) {
-    c.circulation = circulation_state_of(section(h, data, "circulation.state"));
-    const Section vol = section(h, data, "circulation.cavity_volume_m3");
-    if (vol.n != cavities) throw std::runtime_error("archive: checkpoint section 'circulation.cavity_volume_m3' has the wrong size");
-    c.cavity_volume_m3.assign(vol.p, vol.p + vol.n);
-  }
+  read_circulation(h, data, c.circulation, c.cavity_volume_m3);
   return c;
 }
 
@@ -90,18 +100,11 @@ core::SimulatorCheckpoint real_time_checkpoint_of(const json& h, const std::vect
   c.f_ext = vector_of(section(h, data, "f_ext"));
   // A run with a circulation (absent in checkpoints without one, and in those written
   // before 2026-11-26).
-  const size_t cavities = h.value("circulation_cavities", size_t{0});
+  const size_t cavities = read_circulation(h, data, c.circulation, c.cavity_volume_m3);
   if (cavities > 0) {
-    c.circulation = circulation_state_of(section(h, data, "circulation.state"));
-    const Section v = section(h, data, "circulation.cavity_volume_m3");
-    if (v.n != cavities) throw std::runtime_error("archive: checkpoint section 'circulation.cavity_volume_m3' has the wrong size");
-    c.cavity_volume_m3.assign(v.p, v.p + v.n);
     for (size_t k = 0; k < cavities; ++k)
       c.cavity_response.push_back(vector_of(section(h, data, "circulation.cavity_response" + std::to_string(k))));
     c.circulation_iterations = h.value("circulation_iterations", 0);
-    // Absent in checkpoints written before the heart rate was steerable (never changed then).
-    c.circulation.beat_origin_s = h.value("circulation_beat_origin_s", 0.0);
-    c.circulation.previous_period_s = h.value("circulation_previous_period_s", 0.0);
   }
   const json& s = h.at("solver");
   c.solver.solver_name = s.at("name");
