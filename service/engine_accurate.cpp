@@ -43,7 +43,7 @@ core::StepReport AccurateEngine::attempt(int n) {
     core::hyperelastic::Loading loading = io::accurate_loading(scene_, t_start + dt * i / n, tension);
     if (nodal_forces_n_.cols() > 0) loading.nodal_forces_n = &nodal_forces_n_;
     bool converged = false;
-    if (coupled_) {  // the cavities' pressures iterated with the body's steps
+    if (coupled_) {  // the cavities' pressures solved with the body's Newton iteration
       const core::hyperelastic::CoupledStepReport r = coupled_->step(loading);
       converged = r.converged;
       rep.message = r.message;
