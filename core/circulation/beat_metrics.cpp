@@ -49,7 +49,14 @@ void BeatRecorder::close() {
     v.end_systolic_m3 = lo->volume_m3[k];
     v.stroke_m3 = v.end_diastolic_m3 - v.end_systolic_m3;
     v.ejection_fraction = v.end_diastolic_m3 > 0 ? v.stroke_m3 / v.end_diastolic_m3 : 0;
-    v.end_diastolic_pa = hi->pressure_pa[k];
+    // End-diastolic pressure: where filling ends, the first sample within 1e-3 of the
+    // stroke below the largest volume; not at the largest volume itself, which may fall
+    // anywhere in the isovolumic contraction after it (the volume held there to the
+    // coupling's tolerance while the pressure rises).
+    const double filled = v.end_diastolic_m3 - 1e-3 * v.stroke_m3;
+    v.end_diastolic_pa = std::find_if(current_.begin(), current_.end(), [&](const Sample& a) {
+                           return a.volume_m3[k] >= filled;
+                         })->pressure_pa[k];
     v.peak_pa = std::max_element(current_.begin(), current_.end(), [k](const Sample& a, const Sample& b) {
                   return a.pressure_pa[k] < b.pressure_pa[k];
                 })->pressure_pa[k];

@@ -21,7 +21,7 @@ struct VentricleBeat {
   double stroke_m3 = 0;          ///< Their difference.
   double ejection_fraction = 0;  ///< stroke / end-diastolic.
   double peak_pa = 0;            ///< Largest pressure.
-  double end_diastolic_pa = 0;   ///< Pressure at the largest volume.
+  double end_diastolic_pa = 0;   ///< Pressure where filling ends (the first sample within 1e-3 of the stroke below the largest volume).
 };
 
 struct Beat {

@@ -41,3 +41,32 @@ TEST(BeatRecorder, ReducesEachBeatOfAKnownCurve) {
     EXPECT_NEAR(b.ventricle[1].stroke_m3, 60e-6, 1e-12);
   }
 }
+
+// The end-diastolic pressure is where filling ends, not at the largest volume: in the
+// isovolumic contraction after it the volume is held to the coupling's tolerance (here it
+// creeps up by 1e-9 of itself) while the pressure rises to the aortic one.
+TEST(BeatRecorder, EndDiastolicPressureIsWhereFillingEnds) {
+  const double period = 1.0, h = 0.01;
+  cc::BeatRecorder rec(period, 0.0);
+  for (int i = 1; i <= 100; ++i) {
+    const double t = i * h;
+    cc::Sample s;
+    s.time_s = t;
+    if (t <= 0.5) {  // filling: 60 -> 120 mL at 1 kPa
+      s.volume_m3[0] = (60 + 120 * t) * 1e-6;
+      s.pressure_pa[0] = 1000;
+    } else if (t <= 0.6) {  // isovolumic contraction: pressure to 11 kPa
+      s.volume_m3[0] = 120e-6 * (1 + 1e-9 * (t - 0.5));
+      s.pressure_pa[0] = 1000 + 1e5 * (t - 0.5);
+    } else {  // ejection
+      s.volume_m3[0] = (120 - 150 * (t - 0.6)) * 1e-6;
+      s.pressure_pa[0] = 11000;
+    }
+    rec.add(s);
+  }
+  rec.finish();
+  ASSERT_EQ(rec.beats().size(), 1u);
+  const cc::VentricleBeat& v = rec.beats()[0].ventricle[0];
+  EXPECT_NEAR(v.end_diastolic_m3, 120e-6, 1e-12);
+  EXPECT_NEAR(v.end_diastolic_pa, 1000, 1e-9);  // at the largest volume it would be 11 kPa
+}

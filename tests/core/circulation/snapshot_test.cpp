@@ -70,7 +70,10 @@ TEST(Monitor, LastBeatIsTheFiguresOfTheBeatJustCompleted) {
       EXPECT_EQ(lv.end_diastolic_m3, *edv);
       EXPECT_EQ(lv.end_systolic_m3, *std::min_element(lv_volume.begin(), lv_volume.end()));
       EXPECT_EQ(lv.peak_pa, *std::max_element(lv_pressure.begin(), lv_pressure.end()));
-      EXPECT_EQ(lv.end_diastolic_pa, lv_pressure[static_cast<size_t>(edv - lv_volume.begin())]);
+      // Where filling ends: the first sample within 1e-3 of the stroke below the largest.
+      const double filled = *edv - 1e-3 * lv.stroke_m3;
+      const auto end = std::find_if(lv_volume.begin(), lv_volume.end(), [&](double v) { return v >= filled; });
+      EXPECT_EQ(lv.end_diastolic_pa, lv_pressure[static_cast<size_t>(end - lv_volume.begin())]);
       EXPECT_EQ(snap.last_beat.arterial_max_pa[0], *std::max_element(aortic.begin(), aortic.end()));
       EXPECT_GT(lv.stroke_m3, 30 * cc::kM3PerMl);  // the paper's loop ejects about 60 mL
     }
