@@ -27,6 +27,19 @@ void NewtonSettings::validate() const {
 namespace {
 
 constexpr double kRoundOff = 1e-13;
+// Backtracking's bound on the merit's growth: a safeguard, not a descent test (Newton
+// across a large rotation passes through larger residuals on its way).
+constexpr double kMaxGrowth = 1e3;
+
+// Backtracking from a full step: halves alpha (20 times at most; once without the line
+// search) until `admissible(alpha)` holds. @return that alpha, or 0 when none did.
+template <class Admissible>
+double backtrack(const NewtonSettings& s, Admissible&& admissible) {
+  double alpha = 1.0;
+  for (int l = 0; l < (s.line_search ? 20 : 1); ++l, alpha *= 0.5)
+    if (admissible(alpha)) return alpha;
+  return 0.0;
+}
 
 // One merit for both kinds of rows: the force rows against the load, the volume rows
 // against the body's volume.
@@ -59,27 +72,20 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
       return false;
     }
     // Backtracking: halve while the step inverts an element, gives a non-finite residual,
-    // or multiplies the merit by more than kMaxGrowth (a safeguard, not a descent test:
-    // Newton across a large rotation passes through larger residuals on its way).
-    constexpr double kMaxGrowth = 1e3;
-    double alpha = 1.0;
+    // or multiplies the merit by more than kMaxGrowth.
     Positions xn;
     Eigen::VectorXd pn;
-    bool accepted = false;
-    for (int l = 0; l < (s.line_search ? 20 : 1); ++l, alpha *= 0.5) {
+    const double alpha = backtrack(s, [&](double a) {
       xn = xt;
       pn = pt;
-      assembler.add_increment(delta, -alpha, xn, pn);
+      assembler.add_increment(delta, -a, xn, pn);
       const auto t0 = Clock::now();
       ev = residual(xn, pn, Rn, nullptr);
       rep.assembly_s += since(t0);
-      if (ev.finite && ev.inverted_elements == 0 && merit(assembler, Rn) < kMaxGrowth * m0) {
-        accepted = true;
-        break;
-      }
-    }
+      return ev.finite && ev.inverted_elements == 0 && merit(assembler, Rn) < kMaxGrowth * m0;
+    });
     ++rep.iterations;
-    if (!accepted) return false;
+    if (alpha == 0) return false;
     xt = xn;
     pt = pn;
     const auto t0 = Clock::now();
@@ -143,34 +149,28 @@ bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, 
     Eigen::VectorXd increment = -delta;
     for (Eigen::Index j = 0; j < m; ++j) increment -= dP(j) * z[static_cast<size_t>(j)];
     if (!increment.allFinite() || !dP.allFinite()) return false;
-    constexpr double kMaxGrowth = 1e3;  // as newton_iterate: a safeguard, not a descent test
-    double alpha = 1.0;
     Positions xn;
     Eigen::VectorXd pn, Pn;
-    bool accepted = false;
-    for (int l = 0; l < (s.line_search ? 20 : 1); ++l, alpha *= 0.5) {
+    const double alpha = backtrack(s, [&](double a) {
       xn = xt;
       pn = pt;
-      Pn = Pt + alpha * dP;
-      assembler.add_increment(increment, alpha, xn, pn);
+      Pn = Pt + a * dP;
+      assembler.add_increment(increment, a, xn, pn);
       t0 = Clock::now();
       ev = border.residual(xn, pn, Pn, Rn, nullptr);
       rep.assembly_s += since(t0);
-      if (!ev.finite || ev.inverted_elements > 0) continue;
+      if (!ev.finite || ev.inverted_elements > 0) return false;
       try {
         std::vector<Eigen::VectorXd> Gn;
         Eigen::MatrixXd dn;
         border.constraints(xn, Pn, gn, Gn, dn);
       } catch (const std::runtime_error&) {
-        continue;
+        return false;
       }
-      if (merit_of(Rn, gn) < kMaxGrowth * m0) {
-        accepted = true;
-        break;
-      }
-    }
+      return merit_of(Rn, gn) < kMaxGrowth * m0;
+    });
     ++rep.iterations;
-    if (!accepted) return false;
+    if (alpha == 0) return false;
     xt = xn;
     pt = pn;
     Pt = Pn;
