@@ -9,6 +9,8 @@
 /// even a region of one thread (`if (false)` or `omp_set_num_threads(1)`), and the steady
 /// step allocates nothing.
 
+#include "core/team_affinity.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -25,8 +27,13 @@ inline bool threaded() { return omp_get_max_threads() > 1 && !omp_in_parallel();
 template <class Body>
 void parallel_for(int n, Body&& body, bool parallel = true) {
   if (parallel && threaded()) {
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; ++i) body(i);
+    const int cpu = current_cpu();
+#pragma omp parallel
+    {
+      keep_team_apart(cpu);
+#pragma omp for schedule(static)
+      for (int i = 0; i < n; ++i) body(i);
+    }
   } else {
     for (int i = 0; i < n; ++i) body(i);
   }

@@ -433,8 +433,10 @@ void symmetric_block_product(const std::vector<int>& start_v, const std::vector<
     }
   };
   if (threaded()) {
+    const int cpu = current_cpu();
 #pragma omp parallel
     {
+      keep_team_apart(cpu);
 #pragma omp for schedule(static)
       for (int p = 0; p < P; ++p) own(p);
 #pragma omp for schedule(static)

@@ -235,8 +235,13 @@ void SparseSystem::for_each_chunk_coloured(ChunkKernel&& kernel) const {
       }
     };
     if (threaded()) {
-#pragma omp parallel for schedule(dynamic, 1)
-      for (int t = 0; t < nt; ++t) task(t);
+      const int cpu = current_cpu();
+#pragma omp parallel
+      {
+        keep_team_apart(cpu);
+#pragma omp for schedule(dynamic, 1)
+        for (int t = 0; t < nt; ++t) task(t);
+      }
     } else {
       for (int t = 0; t < nt; ++t) task(t);
     }

@@ -2,6 +2,8 @@
 
 #include "core/hyperelastic/assembly.hpp"
 
+#include "core/team_affinity.hpp"
+
 #include "core/hyperelastic/quadrature.hpp"
 #include "core/hyperelastic/shape_functions.hpp"
 
@@ -212,8 +214,10 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, con
   // ones (the line search) run on its current count.
   const int threads = threads_ > 0 ? threads_ : governor_.threads();
   const auto t0 = std::chrono::steady_clock::now();
+  const int cpu = current_cpu();
 #pragma omp parallel num_threads(threads) reduction(+ : energy, inverted)
   {
+    keep_team_apart(cpu);
     Eigen::VectorXd Rl(ls);
     Eigen::MatrixXd Kl(ls, ls);
     Eigen::Matrix<double, 10, 3> xe;

@@ -57,8 +57,10 @@ class SinglePrecisionSupernodalSolve {
       for (int i = 0; i < n_; ++i) x(perm_[static_cast<size_t>(i)]) = static_cast<double>(w_(i));
       return;
     }
+    const int cpu = current_cpu();
 #pragma omp parallel
     {
+      keep_team_apart(cpu);
       const int nt = omp_get_num_threads(), t = omp_get_thread_num();
 #pragma omp for schedule(static)
       for (int i = 0; i < n_; ++i) w_(i) = static_cast<float>(b(perm_[static_cast<size_t>(i)]));

@@ -15,6 +15,9 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <sched.h>
+
+#include <array>
 #include <random>
 
 namespace fiberfem {
@@ -59,6 +62,34 @@ TEST(Parallel, FixedSumHasTheSameBitsOnAnyThreadCount) {
   double one = 0;
   for (int i = 0; i < n; ++i) one += v[static_cast<size_t>(i)];
   EXPECT_NE(one, two) << "these data do not show thread-count rounding";
+}
+
+// The other threads of a team are kept off the CPU the loop's caller runs on
+// (core/team_affinity.hpp): a team thread sharing the caller's CPU spins there while the
+// caller waits for it. Checked from inside a loop: each other thread's allowed CPUs leave
+// out the caller's CPU, the caller's own stay untouched, and the process's other CPUs stay
+// allowed.
+TEST(Parallel, TheOtherThreadsOfALoopAreKeptOffTheCallersCpu) {
+  cpu_set_t process;
+  ASSERT_EQ(sched_getaffinity(0, sizeof process, &process), 0);
+  if (CPU_COUNT(&process) < 2) GTEST_SKIP() << "the process may use one CPU only";
+  omp_set_num_threads(2);
+  for (int round = 0; round < 3; ++round) {
+    const int caller = sched_getcpu();
+    std::array<cpu_set_t, 2> seen{};
+    std::array<int, 2> seen_on{-1, -1};
+    core::parallel_for(2, [&](int) {
+      const int t = omp_get_thread_num();
+      sched_getaffinity(0, sizeof seen[static_cast<size_t>(t)], &seen[static_cast<size_t>(t)]);
+      seen_on[static_cast<size_t>(t)] = sched_getcpu();
+    });
+    ASSERT_GE(seen_on[1], 0) << "the loop ran on one thread";
+    if (sched_getcpu() != caller) continue;  // the caller moved during the loop: nothing to compare
+    EXPECT_FALSE(CPU_ISSET(caller, &seen[1])) << "round " << round << ": the other thread may still run on the caller's CPU " << caller;
+    EXPECT_NE(seen_on[1], caller);
+    EXPECT_EQ(CPU_COUNT(&seen[1]), CPU_COUNT(&process) - 1) << "every other CPU of the process should stay allowed";
+    EXPECT_TRUE(CPU_EQUAL(&seen[0], &process)) << "the caller's own CPUs should be left as they were";
+  }
 }
 
 // One scene, stepped on 1 thread, on 2, and with the governor (threads 0), compared.
