@@ -6,7 +6,7 @@ RV's stroke volume and peak pressure, the aortic systolic/diastolic pressure, ho
 RV's stroke volume is from the LV's, and the beat-to-beat change (the largest relative change
 from the beat before of the LV's EDV, ESV, SV and peak pressure and the aortic pressures).
 Volumes and pressures are the scene's (its `circulation.scale`, not undone). Also prints the
-run's wall time per step (the report's timing over its steps).
+run's wall time per step (the report's timing over the steps it took).
 
 Usage: circulation_beats_table.py REPORT.json
 """
@@ -60,7 +60,7 @@ def main():
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for row in rows(circ["beats"]):
         print(row)
-    steps = report["steps"]["completed"]
+    steps = len(circ["steps"]["time_s"])  # the steps this run took (a resumed run: since its checkpoint)
     print(f"\n{steps} steps, wall time {report['timing']['wall_s']:.0f} s ({report['timing']['wall_s'] / steps:.2f} s a step); "
           f"blood volume {circ['blood_volume_m3'] / ML:.2f} mL, largest drift {circ['max_blood_volume_drift_m3'] / ML:.1e} mL")
 
