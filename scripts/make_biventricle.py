@@ -12,8 +12,9 @@ Geometry (metres; the long axis is z, apex down, base plane z = BASE_Z):
       (0.032, 0.026, 0.040), endocardium (0.028, 0.022, 0.036); its cavity is the RV
       endocardium outside the LV epicardium, so the septum is LV wall.
   Myocardium = (LV epi U RV epi) - LV cavity - RV cavity, cut at z = BASE_Z.
-Physical groups: volume "myocardium" (tag 1); surfaces "lv_endo", "rv_endo", "endo" (both),
-"epi", "base". fiberfem reads the groups' nodes as node sets (docs/mesh-formats.md).
+Physical groups: volumes "lv_wall" (tag 1: the LV free wall and the septum) and
+"rv_free_wall" (tag 2: the tetrahedra whose centroid lies outside the LV epicardium), which
+scenes select as regions by tag; surfaces "lv_endo", "rv_endo", "endo" (both), "epi", "base". fiberfem reads the groups' nodes as node sets (docs/mesh-formats.md).
 The file is deterministic for a given gmsh version (pinned in scripts/requirements.txt).
 """
 import argparse
@@ -56,6 +57,30 @@ def classify(p):
     return name
 
 
+def split_rv_free_wall(volume):
+    """Moves the tetrahedra whose centroid lies outside the LV epicardium (the RV free wall;
+    the septum is LV wall) to a volume entity of their own, so that they carry their own
+    physical tag. Element and node tags are kept and nodes are not reclassified, so the node
+    numbering is the one-volume mesh's; returns the moved elements' count."""
+    types, elements, nodes = gmsh.model.mesh.getElements(3, volume)
+    if list(types) != [4]:
+        raise SystemExit(f"expected linear tetrahedra only, got element types {list(types)}")
+    node_tags, coords, _ = gmsh.model.mesh.getNodes()
+    where = {int(t): coords[3 * i:3 * i + 3] for i, t in enumerate(node_tags)}
+    moved, moved_nodes = [], []
+    for k, tag in enumerate(elements[0]):
+        corners = [int(n) for n in nodes[0][4 * k:4 * k + 4]]
+        centroid = [sum(where[n][j] for n in corners) / 4 for j in range(3)]
+        if level(LV_EPI, centroid) > 0:
+            moved.append(int(tag))
+            moved_nodes.extend(corners)
+    rv_wall = gmsh.model.addDiscreteEntity(3)
+    gmsh.model.mesh.removeElements(3, volume, moved)
+    gmsh.model.mesh.addElementsByType(rv_wall, 4, moved, moved_nodes)
+    gmsh.model.addPhysicalGroup(3, [rv_wall], 2, name="rv_free_wall")
+    return len(moved)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=float, default=0.004, help="target element size, m (default 0.004)")
@@ -85,13 +110,15 @@ def main():
     for name, tags in groups.items():
         if not tags:
             raise SystemExit(f"no surface classified as {name}")
-    gmsh.model.addPhysicalGroup(3, vols, 1, name="myocardium")
+    gmsh.model.addPhysicalGroup(3, vols, 1, name="lv_wall")
     for i, name in enumerate(["lv_endo", "rv_endo", "epi", "base"]):
         gmsh.model.addPhysicalGroup(2, groups[name], 10 + i, name=name)
     gmsh.model.addPhysicalGroup(2, groups["lv_endo"] + groups["rv_endo"], 20, name="endo")
 
-    n_tets = gmsh_meshing.mesh_and_write(args.out, args.size, 0.5, 12)
-    print(f"{args.out}: {n_tets} tetrahedra; surfaces: "
+    rv_wall = []
+    n_tets = gmsh_meshing.mesh_and_write(args.out, args.size, 0.5, 12,
+                                         before_write=lambda: rv_wall.append(split_rv_free_wall(vols[0])))
+    print(f"{args.out}: {n_tets} tetrahedra ({rv_wall[0]} in the RV free wall); surfaces: "
           + ", ".join(f"{k} {v}" for k, v in groups.items()))
     gmsh.finalize()
 

@@ -284,3 +284,30 @@ TEST(MeshReaders, RandomMutationsAreReadOrRefusedCleanly) {
   EXPECT_GT(refused, 1000);
   EXPECT_GT(read, 10);  // some mutations are harmless (e.g. in a coordinate's last digit)
 }
+
+// The shipped heart mesh (meshes/biventricle.msh) carries two volume tags so that a scene can
+// select the RV free wall as a region: tag 2 for every tetrahedron whose centroid lies outside
+// the LV epicardium, the ellipsoid of scripts/make_biventricle.py (semi-axes 0.025, 0.025,
+// 0.045 m about the origin), tag 1 for the rest (LV free wall and septum). Checked against the
+// ellipsoid restated here; the RV free wall is on the +x side and in the RV epicardium's
+// ellipsoid (centre (0.012, 0, 0.004), semi-axes 0.032, 0.026, 0.040).
+TEST(ShippedMeshes, TheBiventricleTagsTheRvFreeWallOutsideTheLvEpicardium) {
+  const core::TetMesh m = fio::read_mesh(std::string(FIBERFEM_SOURCE_DIR) + "/meshes/biventricle.msh");
+  auto level = [](const Vec3& p, const Vec3& c, const Vec3& r) { return ((p - c).array() / r.array()).square().sum() - 1.0; };
+  const Vec3 origin(0, 0, 0), lv_epi(0.025, 0.025, 0.045), rv_centre(0.012, 0, 0.004), rv_epi(0.032, 0.026, 0.040);
+  int count[3] = {0, 0, 0};
+  for (int e = 0; e < m.num_elements(); ++e) {
+    Vec3 centroid = Vec3::Zero();
+    for (int n : m.tets()[static_cast<size_t>(e)]) centroid += m.rest_positions().col(n) / 4.0;
+    const int tag = m.regions()[static_cast<size_t>(e)];
+    ASSERT_TRUE(tag == 1 || tag == 2) << "element " << e << " has tag " << tag;
+    ++count[tag];
+    EXPECT_EQ(tag == 2, level(centroid, origin, lv_epi) > 0) << "element " << e;
+    if (tag == 2) {
+      EXPECT_GT(centroid.x(), 0.0) << "element " << e;
+      EXPECT_LT(level(centroid, rv_centre, rv_epi), 0.05) << "element " << e;  // within a tet of the RV epicardium
+    }
+  }
+  EXPECT_GT(count[2], m.num_elements() / 10);
+  EXPECT_GT(count[1], m.num_elements() / 2);
+}
