@@ -6,6 +6,7 @@ Each case starts a real service (or replay), the bridge through `fiberfem web`, 
 headless Chromium on the page, and checks what the page shows against what the service
 reports to an independent Python client."""
 
+import io
 import os
 import shutil
 import socket
@@ -14,6 +15,7 @@ import sys
 import time
 
 import numpy as np
+from PIL import Image
 
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.keys import Keys
@@ -326,7 +328,61 @@ def case_secure(rig: Rig, out_dir: str):
     assert "paused" in observed_state()
 
 
-CASES = {"cli": case_cli, "secure": case_secure, "runs": case_runs, "stream": case_stream, "heart_rate": case_heart_rate, "force": case_force, "replay": case_replay,
+def case_circulation(rig: Rig, out_dir: str):
+    """A run with a circulation (the real-time heart coupled to its loop): the page shows its
+    pressure-volume loops (LV red, RV blue: both drawn) and, in numbers, exactly the sample of
+    the frame it shows as a witness client read it from the service's circulation topic; a
+    run without a circulation hides the panel."""
+    witness = rig.witness()  # its circulation reader exists before the service publishes
+    scene = os.path.join(rig.source_dir, "configs", "scenes", "heart-circulation-realtime.yaml")
+    rig.start([rig.bin, "serve", scene, "--run-id", rig.run_id, "--threads", "1"], "serve")
+    witness.resolve_run(rig.run_id, wait_s=30)
+    rig.bridge()
+    rig.browser()
+    rig.wait_js("window.fiberfem.stats.circulation && window.fiberfem.stats.circulation.points >= 45", timeout=60,
+                what="a second of circulation on the page")
+    assert rig.js("return document.getElementById('circulation').hidden;") is False
+    seen = {}
+    for attempt in range(20):  # the page's newest sample, as the witness read it
+        for c in witness.circulation_samples(rig.run_id, wait_s=1.0):
+            seen[c.frame] = c
+        now = rig.js("return window.fiberfem.stats.circulation.now;")
+        if now["frame"] in seen:
+            break
+    assert now["frame"] in seen, (now["frame"], sorted(seen)[-5:])
+    c = seen[now["frame"]]
+    mmhg = 133.322387415
+    for shown, sample in (("lv_pressure_mmhg", c.lv_pressure_pa / mmhg), ("lv_volume_ml", c.lv_volume_m3 * 1e6),
+                          ("rv_pressure_mmhg", c.rv_pressure_pa / mmhg), ("rv_volume_ml", c.rv_volume_m3 * 1e6),
+                          ("aortic_pressure_mmhg", c.systemic_arterial_pressure_pa / mmhg)):
+        assert abs(now[shown] - sample) <= 1e-9 * max(1.0, abs(sample)), (shown, now[shown], sample)
+    print(f"frame {c.frame}: LV {now['lv_pressure_mmhg']:.3f} mmHg {now['lv_volume_ml']:.3f} mL, "
+          f"aortic {now['aortic_pressure_mmhg']:.3f} mmHg, as the witness read it")
+    # The loops: strokes in the LV's red and the RV's blue on the panel's canvas.
+    rig.js("window.fiberfem.circulation.draw();")
+    png = rig.driver.find_element("id", "pv-loop").screenshot_as_png
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(np.int16)
+    near = lambda rgb: (np.abs(img - np.array(rgb)).sum(axis=2) < 60).sum()
+    red, blue = near((229, 57, 53)), near((30, 136, 229))
+    print(f"loop pixels: LV {red}, RV {blue}")
+    assert red > 100 and blue > 100, (red, blue)
+    if out_dir:
+        os.makedirs(out_dir, exist_ok=True)
+        assert rig.driver.save_screenshot(os.path.join(out_dir, "web-circulation.png"))
+    # A run without a circulation: the panel hides when the page switches to it.
+    plain = rig.run_id + "-plain"
+    rig.start([rig.bin, "serve", "--builtin", "heart", "--run-id", plain, "--threads", "1"], "serve-plain")
+    witness.resolve_run(plain, wait_s=30)
+    rig.wait_js(f"[...document.querySelectorAll('#runs li')].some(li => li.textContent.startsWith('{plain}'))", what="the plain run listed")
+    rig.js(f"window.fiberfem.panel.watch('{plain}');")
+    rig.wait_js(f"window.fiberfem.stats.topology && window.fiberfem.stats.topology.run === '{plain}'", what="the plain run's surface")
+    frames = rig.frames()
+    rig.wait_js(f"window.fiberfem.stats.frames >= {frames + 10}", what="frames of the plain run")
+    assert rig.js("return document.getElementById('circulation').hidden;") is True
+    assert rig.js("return window.fiberfem.stats.circulation;") is None
+
+
+CASES = {"circulation": case_circulation, "cli": case_cli, "secure": case_secure, "runs": case_runs, "stream": case_stream, "heart_rate": case_heart_rate, "force": case_force, "replay": case_replay,
          "bad_input": case_bad_input, "token": case_token, "credit": case_credit}
 
 

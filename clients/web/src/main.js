@@ -2,6 +2,7 @@
 // newest frame once per display refresh and asks for the next only after drawing it (so a
 // slow page skips frames instead of queueing them), and steers through the panel.
 import { Colouring } from "./colours.js";
+import { CirculationPanel } from "./circulation.js";
 import { decodeFrame } from "./frames.js";
 import { Panel } from "./panel.js";
 import { HeartView } from "./view.js";
@@ -13,11 +14,12 @@ const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${l
 ws.binaryType = "arraybuffer";
 const send = (msg) => { if (ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(msg)); };
 const panel = new Panel(send);
+const circulation = new CirculationPanel();
 
 // What the tests and scripts/web_measure.py read: frames drawn, bytes, publish-to-paint
 // latency of each drawn frame (ms, the service's source timestamp to the end of render()).
 const stats = { frames: 0, bytes: 0, latencies: [], started: performance.now(), lastFrame: null, topology: null, acks: [], errors: [] };
-window.fiberfem = { stats, panel, view, send, colouring, ws };
+window.fiberfem = { stats, panel, view, send, colouring, ws, circulation };
 
 let pending = null;   // the newest frame received, not drawn yet
 let regionNames = [];
@@ -42,10 +44,15 @@ ws.onmessage = (event) => {
       view.setSurface(msg.triangles, msg.rest);
       panel.topology(msg);
       stats.topology = { run: msg.run, vertices: msg.vertices, triangles: msg.triangles.length / 3, replay: msg.replay };
+      if (circulation.run !== msg.run) { circulation.clear(msg.run); stats.circulation = null; }
       if (pending) send({ type: "ready" }); // dropped undrawn: ask for one of the new surface
       pending = null;
       break;
     case "status": panel.status(msg); stats.status = msg; break;
+    case "circulation":
+      circulation.update(msg);
+      stats.circulation = { run: msg.run, now: msg.now, beat: msg.beat, points: circulation.points.length, messages: (stats.circulation?.messages ?? 0) + 1 };
+      break;
     case "ack": panel.ack(msg); stats.acks.push(msg); break;
     case "error": panel.error(msg); stats.errors.push(msg); break;
     default: panel.message(`unknown message '${msg.type}'`, "error");
@@ -53,8 +60,9 @@ ws.onmessage = (event) => {
 };
 ws.onclose = () => panel.message("connection to the bridge closed", "error");
 
-function draw() {
+function draw(now) {
   requestAnimationFrame(draw);
+  circulation.drawIfDue(now);
   if (pending && view.mesh && pending.vertices * 3 === view.mesh.geometry.attributes.position.array.length) {
     const f = pending;
     pending = null;

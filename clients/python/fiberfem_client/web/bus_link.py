@@ -2,12 +2,14 @@
 
 It waits on the readers (a Cyclone WaitSet, no polling), keeps each run's newest status,
 topology and state, writes the commands the pages post and matches their acknowledgements,
-and hands everything to the asyncio side through `notify` (called from this thread). A
+keeps a trail of each run's circulation samples (a run with a circulation), and hands
+everything to the asyncio side through `notify` (called from this thread). A
 state that arrives while the pages are still drawing the last one replaces it: nothing
 queues, so a slow page never holds the service back (the state reader is keep-last-1).
 
 Only this thread writes the dictionaries of runs; the asyncio side reads single keys or
-takes copies (`dict(...)`), both atomic under the GIL, never iterates them in place."""
+takes copies (`dict(...)`), both atomic under the GIL, never iterates them in place. A
+circulation trail is a tuple, replaced whole, so a reader never sees one half written."""
 
 import queue
 import threading
@@ -20,11 +22,12 @@ from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
 from cyclonedds.util import duration
 
 from ..client import Ack, Client, State, Topology
-from ..types import MeshState, MeshTopology, ServiceStatus
+from ..types import CirculationState, MeshState, MeshTopology, ServiceStatus
 
 LOST_AFTER_S = 3.0      # a run without a status this long is dropped from the list
 RESEND_AFTER_S = 1.0    # an unanswered command is written again under its id (as ctl does)
 ANSWER_WITHIN_S = 10.0  # then the page is told there was no answer
+CIRCULATION_TRAIL = 600  # circulation samples kept per run for the page's loop (10 s of states at 60/s)
 
 
 @dataclass
@@ -47,18 +50,19 @@ class Pending:
 class BusLink:
     def __init__(self, client: Client, notify: Callable[[str, str], None]):
         self.client = client
-        self.notify = notify  # notify(what, run_id), what in {"runs", "status", "topology", "state"}
+        self.notify = notify  # notify(what, run_id), what in {"runs", "status", "topology", "state", "circulation"}
         self.statuses: Dict[str, object] = {}
         self.seen: Dict[str, float] = {}
         self.topologies: Dict[str, Topology] = {}
         self.states: Dict[str, Received] = {}
+        self.circulation: Dict[str, tuple] = {}  # run: its newest CirculationState samples, oldest first
         self._outbox: "queue.Queue" = queue.Queue()
         self._pending: Dict[str, Pending] = {}
         self._stop = False
         self._waitset = WaitSet(client.dp)
         mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
         self._dds = client.entities()
-        for name in ("status", "state", "topology", "ack"):
+        for name in ("status", "state", "topology", "ack", "circulation"):
             reader = self._dds[name]
             if reader is not None:
                 self._waitset.attach(ReadCondition(reader, mask))
@@ -93,6 +97,7 @@ class BusLink:
             self._take_statuses()
             self._take_topologies()
             self._take_states()
+            self._take_circulation()
             self._write_commands()
             self._take_acks()
             self._drop_lost_runs()
@@ -129,6 +134,26 @@ class BusLink:
             self.states[run] = Received(state, source_ms, now_ms)
             self.notify("state", run)
 
+    def _take_circulation(self):
+        reader = self._dds["circulation"]
+        if reader is None:  # refused by access control: the page shows no loop
+            return
+        fresh: Dict[str, list] = {}
+        for c in reader.take(N=256):
+            if isinstance(c, CirculationState):
+                fresh.setdefault(c.run_id, []).append(c)
+        for run, got in fresh.items():
+            got.sort(key=lambda c: c.frame)
+            trail = self.circulation.get(run, ())
+            if trail and got[0].frame < trail[-1].frame:  # a reset or a seek back: the trail starts again
+                trail = ()
+            # A frame published again (a command while paused republishes the state) replaces its sample.
+            kept = [c for c in got if not trail or c.frame > trail[-1].frame]
+            if trail and len(kept) < len(got):
+                trail = trail[:-1] + (got[len(got) - len(kept) - 1],)
+            self.circulation[run] = (trail + tuple(kept))[-CIRCULATION_TRAIL:]
+            self.notify("circulation", run)
+
     def _write_commands(self):
         while True:
             try:
@@ -159,6 +184,6 @@ class BusLink:
     def _drop_lost_runs(self):
         now = time.monotonic()
         for run in [r for r, t in self.seen.items() if now - t > LOST_AFTER_S]:
-            for d in (self.seen, self.statuses, self.topologies, self.states):
+            for d in (self.seen, self.statuses, self.topologies, self.states, self.circulation):
                 d.pop(run, None)
             self.notify("runs", run)

@@ -38,6 +38,10 @@ class Hub:
         s = self.link.statuses.get(run)
         return None if s is None else status_message(s, self._beats.get(run, (0.0, 0.0))[1])
 
+    def circulation(self, run: str) -> tuple:
+        """The run's newest circulation samples, oldest first (empty for a run without one)."""
+        return self.link.circulation.get(run, ())
+
     def surface(self, run: str) -> Optional[Surface]:
         """The run's surface, built from its topology at first use (raises FieldUnavailable)."""
         if run not in self.surfaces:

@@ -88,6 +88,37 @@ def parse(text) -> dict:
     return msg
 
 
+MMHG_PA = 133.322387415  # Pa per mmHg
+ML_M3 = 1e6              # mL per m^3
+
+
+def circulation_message(run: str, samples, restart: bool) -> dict:
+    """A run's circulation samples as the page draws them: the loop's points (frame, time s,
+    LV volume mL, LV pressure mmHg, RV volume mL, RV pressure mmHg), oldest first; `restart`
+    when the page should drop the points it has. "now" holds the newest sample's pressures
+    (mmHg), volumes (mL) and flows (mL/s), "beat" its last complete beat's figures."""
+    def finite(v):
+        return None if not math.isfinite(v) else v
+    points = [[c.frame, c.time_s, c.lv_volume_m3 * ML_M3, c.lv_pressure_pa / MMHG_PA,
+               c.rv_volume_m3 * ML_M3, c.rv_pressure_pa / MMHG_PA] for c in samples]
+    c = samples[-1]
+    now = {"frame": c.frame, "time_s": c.time_s,
+           "lv_pressure_mmhg": c.lv_pressure_pa / MMHG_PA, "lv_volume_ml": c.lv_volume_m3 * ML_M3,
+           "rv_pressure_mmhg": c.rv_pressure_pa / MMHG_PA, "rv_volume_ml": c.rv_volume_m3 * ML_M3,
+           "aortic_pressure_mmhg": c.systemic_arterial_pressure_pa / MMHG_PA,
+           "pulmonary_arterial_pressure_mmhg": c.pulmonary_arterial_pressure_pa / MMHG_PA,
+           "aortic_flow_ml_s": c.aortic_flow_m3_s * ML_M3, "mitral_flow_ml_s": c.mitral_flow_m3_s * ML_M3}
+    beat = None
+    if c.beat > 0:
+        beat = {"beat": c.beat,
+                "lv_stroke_volume_ml": finite(c.lv_stroke_volume_m3 * ML_M3), "lv_ejection_fraction": finite(c.lv_ejection_fraction),
+                "lv_peak_pressure_mmhg": finite(c.lv_peak_pressure_pa / MMHG_PA),
+                "rv_stroke_volume_ml": finite(c.rv_stroke_volume_m3 * ML_M3), "rv_ejection_fraction": finite(c.rv_ejection_fraction),
+                "aortic_max_mmhg": finite(c.systemic_arterial_max_pa / MMHG_PA),
+                "aortic_min_mmhg": finite(c.systemic_arterial_min_pa / MMHG_PA)}
+    return {"type": "circulation", "run": run, "restart": restart, "points": points, "now": now, "beat": beat}
+
+
 def status_message(s, beat: float) -> dict:
     """A run's ServiceStatus as the page shows it."""
     keys = ("run_id", "scene_name", "host", "state", "mode", "replay", "frame", "time_s", "frames_per_second",

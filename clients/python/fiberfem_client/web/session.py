@@ -13,7 +13,7 @@ from typing import Optional
 from aiohttp import WSMsgType, web
 
 from .hub import Hub
-from .protocol import LIVE_KINDS, REPLAY_KINDS, ProtocolError, parse
+from .protocol import LIVE_KINDS, REPLAY_KINDS, ProtocolError, circulation_message, parse
 from .surface import FIELDS, FieldUnavailable
 
 _numbers = itertools.count(1)
@@ -27,7 +27,8 @@ class Session:
         self.refused = refused  # why this page may not steer ("" when it may)
         self.credit = True
         self.sent_frame = None
-        self.dirty = {"runs", "topology", "status"}
+        self.circulation_sent = None  # the last circulation frame sent for self.run (None: none yet)
+        self.dirty = {"runs", "topology", "status", "circulation"}
         self.wake = asyncio.Event()
         self.wake.set()
         self.force_name = f"web-{self.number}"
@@ -69,7 +70,8 @@ class Session:
                 return
             self.run, self.field = msg["run"], msg["field"]
             self.sent_frame, self.credit = None, True  # a frame in flight is of the old run: not waited for
-            self.dirty |= {"topology", "status"}
+            self.circulation_sent = None
+            self.dirty |= {"topology", "status", "circulation"}
             self.wake.set()
         else:
             await self._steer(msg)
@@ -141,7 +143,7 @@ class Session:
             await self._send_json({"type": "runs", "runs": self.hub.runs()})
             if self.run is None and self.hub.link.statuses:
                 self.run = min(dict(self.hub.link.statuses))
-                dirty |= {"topology", "status"}
+                dirty |= {"topology", "status", "circulation"}
         if self.run is None:
             return
         if "topology" in dirty:
@@ -150,8 +152,23 @@ class Session:
             status = self.hub.status(self.run)
             if status is not None:
                 await self._send_json(status)
+        if "circulation" in dirty:
+            await self._send_circulation()
         if self.credit:
             await self._send_frame()
+
+    async def _send_circulation(self):
+        """The samples the page has not had (all of the trail after a switch or a restart)."""
+        trail = self.hub.circulation(self.run)
+        if not trail:
+            return
+        last = self.circulation_sent
+        restart = last is None or trail[-1].frame < last or trail[0].frame > last  # a switch, a reset, or samples missed
+        new = trail if restart else [c for c in trail if c.frame > last]
+        if not new:
+            return
+        self.circulation_sent = new[-1].frame
+        await self._send_json(circulation_message(self.run, new, restart))
 
     async def _send_topology(self):
         try:
