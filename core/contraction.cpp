@@ -71,6 +71,13 @@ double Contraction::tension(int region, double delay_s, double t_s) const {
   return peak * v;
 }
 
+double Contraction::continued_origin(const Contraction& before, double before_origin_s, const Contraction& after, double t_s) {
+  const double since = t_s - before_origin_s;
+  if (since < before.period_s) return before_origin_s;  // still in the first beat
+  const double phase = since - std::floor(since / before.period_s) * before.period_s;
+  return t_s - phase - after.period_s;
+}
+
 TwitchTable Contraction::tabulate(int samples) const {
   TwitchTable t;
   t.period_s = period_s;

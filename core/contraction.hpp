@@ -85,6 +85,11 @@ struct Contraction {
   double tension(int region, double delay_s, double t_s) const;
   /// The normalised beat (tension / peak as a function of time since activation), sampled.
   TwitchTable tabulate(int samples = 4096) const;
+  /// The time a contraction that replaces `before` at time t_s counts its beats from, so
+  /// that the beat under way keeps its phase (a rate change does not jump the twitch):
+  /// one whole new period (or more) before the current beat's start, so the tail of a
+  /// previous beat is counted; `before`'s origin while still in its first beat.
+  static double continued_origin(const Contraction& before, double before_origin_s, const Contraction& after, double t_s);
   /// Also refuses a twitch that has not decayed to 1e-4 of its peak two periods after it
   /// starts (each beat carries only the previous beat's tail).
   /// @param num_regions, num_elements sizes to check against.

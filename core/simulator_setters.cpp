@@ -130,21 +130,9 @@ void Simulator::set_contraction(Contraction contraction) {
   const bool was_on = model_.contraction.enabled();
   const bool on = contraction.enabled();
   if (on) {
-    // Keep the phase of the beat under way (a rate change must not jump the twitch):
-    // phase = time since the current beat began. The new origin puts the current beat
-    // at the same phase, one whole new period (or more) after the origin so the table's
-    // first-beat branch (no previous tail) is not taken again.
-    double origin = st_.time_s;
-    if (was_on) {
-      const double since = st_.time_s - st_.contraction_origin_s;
-      const double old_period = model_.contraction.period_s;
-      if (since >= old_period) {
-        const double phase = since - std::floor(since / old_period) * old_period;
-        origin = st_.time_s - phase - contraction.period_s;
-      } else {
-        origin = st_.contraction_origin_s;  // still in the first beat
-      }
-    }
+    // Keep the phase of the beat under way (a rate change must not jump the twitch).
+    const double origin =
+        was_on ? Contraction::continued_origin(model_.contraction, st_.contraction_origin_s, contraction, st_.time_s) : st_.time_s;
     TwitchTable table = contraction.tabulate();
     tension_table_ = std::move(table);
     st_.contraction_origin_s = origin;

@@ -192,7 +192,7 @@ core::hyperelastic::DynamicSettings accurate_dynamic_settings(const Scene& sc, c
   return ds;
 }
 
-core::hyperelastic::Loading accurate_loading(const Scene& sc, double t_s, std::vector<double>& tension) {
+core::hyperelastic::Loading accurate_loading(const Scene& sc, double t_s, std::vector<double>& tension, double contraction_origin_s) {
   core::hyperelastic::Loading l;
   for (const core::SurfaceLoad& load : sc.model.loads.surface_loads)
     l.pressure_factors.push_back(load.ramp_s > 0 ? std::min(1.0, t_s / load.ramp_s) : 1.0);
@@ -205,7 +205,7 @@ core::hyperelastic::Loading accurate_loading(const Scene& sc, double t_s, std::v
   const auto& regions = sc.model.mesh.regions();
   tension.resize(regions.size());
   for (size_t e = 0; e < regions.size(); ++e)
-    tension[e] = c.tension(regions[e], c.element_delay_s.empty() ? 0.0 : c.element_delay_s[e], t_s);
+    tension[e] = c.tension(regions[e], c.element_delay_s.empty() ? 0.0 : c.element_delay_s[e], t_s - contraction_origin_s);
   l.active_tension_pa = &tension;
   return l;
 }

@@ -39,7 +39,8 @@ core::hyperelastic::DynamicSettings accurate_dynamic_settings(const Scene& scene
 /// The loads of an accurate scene at time t_s: each traction at its ramp, the contraction's
 /// tension per element (written into `tension_pa`, which the result points to; emptied when
 /// the contraction is off).
-core::hyperelastic::Loading accurate_loading(const Scene& scene, double t_s, std::vector<double>& tension_pa);
+core::hyperelastic::Loading accurate_loading(const Scene& scene, double t_s, std::vector<double>& tension_pa,
+                                             double contraction_origin_s = 0);
 
 /// A probe's displacement interpolated with the element's shape functions (all its nodes), m.
 core::Vec3 accurate_probe_displacement(const core::hyperelastic::ElementMesh& mesh, const Probe& probe,

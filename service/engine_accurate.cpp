@@ -40,7 +40,7 @@ core::StepReport AccurateEngine::attempt(int n) {
   solver_->set_substeps(n);
   for (int i = 1; i <= n && rep.status != core::StepStatus::failed; ++i) {
     std::vector<double> tension;
-    core::hyperelastic::Loading loading = io::accurate_loading(scene_, t_start + dt * i / n, tension);
+    core::hyperelastic::Loading loading = io::accurate_loading(scene_, t_start + dt * i / n, tension, contraction_origin_s_);
     if (nodal_forces_n_.cols() > 0) loading.nodal_forces_n = &nodal_forces_n_;
     bool converged = false;
     if (coupled_) {  // the cavities' pressures solved with the body's Newton iteration
@@ -97,7 +97,13 @@ core::StepReport AccurateEngine::step() {
   return rep;
 }
 
-void AccurateEngine::update_tension() { io::accurate_loading(scene_, solver_->time_s(), tension_pa_); }
+void AccurateEngine::update_tension() { io::accurate_loading(scene_, solver_->time_s(), tension_pa_, contraction_origin_s_); }
+
+EngineCheckpoint AccurateEngine::checkpoint() const {
+  core::hyperelastic::DynamicState s = coupled_ ? coupled_->checkpoint() : solver_->state();
+  s.contraction_origin_s = contraction_origin_s_;
+  return s;
+}
 
 void AccurateEngine::set_point_forces(const std::vector<core::PointForce>& forces) {
   const core::hyperelastic::ElementMesh& mesh = *problem_.mesh;
@@ -120,12 +126,16 @@ void AccurateEngine::restore(const EngineCheckpoint& c) {
 void AccurateEngine::restore_state(const EngineCheckpoint& c) {
   const auto* s = std::get_if<core::hyperelastic::DynamicState>(&c);
   if (s == nullptr) throw std::invalid_argument("checkpoint of the real-time tier: this run is on the accurate tier");
+  contraction_origin_s_ = s->contraction_origin_s;
   if (coupled_) coupled_->restore(*s);
   else if (!s->cavity_volume_m3.empty()) throw std::invalid_argument("checkpoint of a run with a circulation: this scene has none");
   else solver_->restore(*s);
 }
 
-void AccurateEngine::reset() { start(solver_->settings()); }
+void AccurateEngine::reset() {
+  contraction_origin_s_ = 0;
+  start(solver_->settings());
+}
 
 std::unique_ptr<AccurateEngine> AccurateEngine::rebuilt(const io::Scene& running) {
   auto next = std::make_unique<AccurateEngine>(running);
@@ -134,6 +144,10 @@ std::unique_ptr<AccurateEngine> AccurateEngine::rebuilt(const io::Scene& running
   if (coupled_) next->coupled_->continue_from(*coupled_);
   next->solver_->continue_from(*solver_);
   next->nodal_forces_n_ = nodal_forces_n_;
+  const core::Contraction &before = scene_.model.contraction, &after = next->scene_.model.contraction;
+  next->contraction_origin_s_ = contraction_origin_s_;
+  if (before.enabled() && after.enabled() && after.period_s != before.period_s)
+    next->contraction_origin_s_ = core::Contraction::continued_origin(before, contraction_origin_s_, after, solver_->time_s());
   next->update_tension();
   return next;
 }

@@ -25,7 +25,7 @@ class AccurateEngine final : public Engine {
   /// The point forces on corner nodes (the commands' forces), replacing those set before.
   /// @throws std::invalid_argument for a node out of range or a non-finite force.
   void set_point_forces(const std::vector<core::PointForce>& forces);
-  EngineCheckpoint checkpoint() const override { return coupled_ ? coupled_->checkpoint() : solver_->state(); }
+  EngineCheckpoint checkpoint() const override;
   void restore(const EngineCheckpoint& c) override;
   void reset() override;
   const core::circulation::State* circulation_state() const override { return coupled_ ? &coupled_->state() : nullptr; }
@@ -38,7 +38,8 @@ class AccurateEngine final : public Engine {
   /// Builds the engine of `running` (the same scene with changed parameters) and carries
   /// this one's state over: positions, velocities, pressures, time, steps, point forces and
   /// the lagged factor, taken over without factorising again (this engine is left without
-  /// it); the parameters change the answer from the next step on.
+  /// it); the parameters change the answer from the next step on. A new heart rate keeps
+  /// the phase of the beat under way (core::Contraction::continued_origin).
   /// @throws std::invalid_argument as the constructor, or when the state does not fit the
   /// new problem (another mesh); this engine is unchanged then.
   std::unique_ptr<AccurateEngine> rebuilt(const io::Scene& running);
@@ -70,6 +71,7 @@ class AccurateEngine final : public Engine {
   std::unique_ptr<core::hyperelastic::CirculationCoupledDynamics> coupled_;
   core::Positions nodal_forces_n_;  // 3 x element-mesh nodes; empty: none
   std::vector<double> tension_pa_;
+  double contraction_origin_s_ = 0;  // the contraction's beats count from here (a steered rate moves it)
 };
 
 }  // namespace fiberfem::service

@@ -42,6 +42,10 @@ struct DynamicState {
   /// volumes: no circulation.
   circulation::State circulation;
   std::vector<double> cavity_volume_m3;
+  /// The time the contraction counts its beats from, s (moved by a rate change so that the
+  /// beat keeps its phase; kept by the service's engine, DynamicSolver neither writes nor
+  /// reads it).
+  double contraction_origin_s = 0;
 };
 
 class DynamicSolver {

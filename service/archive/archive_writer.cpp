@@ -478,7 +478,8 @@ json accurate_checkpoint(const core::hyperelastic::DynamicState& c, double dt_s,
           {"num_pressures", c.p.size()},
           {"circulation_cavities", c.cavity_volume_m3.size()},
           {"circulation_beat_origin_s", c.circulation.beat_origin_s},
-          {"circulation_previous_period_s", c.circulation.previous_period_s}};
+          {"circulation_previous_period_s", c.circulation.previous_period_s},
+          {"contraction_origin_s", c.contraction_origin_s}};
 }
 
 }  // namespace

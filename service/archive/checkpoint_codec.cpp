@@ -72,6 +72,7 @@ core::hyperelastic::DynamicState accurate_checkpoint_of(const json& h, const std
   c.linear.analysed = sparse_of(h, data, "linear.analysed");
   c.linear.factored = sparse_of(h, data, "linear.factored");
   read_circulation(h, data, c.circulation, c.cavity_volume_m3);
+  c.contraction_origin_s = h.value("contraction_origin_s", 0.0);  // absent before a steered rate kept its phase here
   return c;
 }
 

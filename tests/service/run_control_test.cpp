@@ -428,5 +428,38 @@ TEST(RunControl, AContractionCommandDrivesTheAccurateTiersActiveTension) {
   EXPECT_DOUBLE_EQ(live.peak_tension_pa(), 400.0);
 }
 
+// A heart rate steered on the accurate tier keeps the beat under way in phase, as on the
+// real-time tier: the sine twitch (systole 0.3 s) 0.1 s into the second beat at 60/min
+// reads peak sin^2(pi/3) before and after a change to 80/min (without the rule, t mod the
+// new period 0.75 s would put it past systole, at 0), reaches the peak 0.05 s later, and
+// the next beat starts one new period after the current one began (1 + 0.75 s). A run
+// resumed from the parameter state and a checkpoint continues it bit for bit.
+TEST(RunControl, AnAccurateHeartRateChangeKeepsThePhase) {
+  const std::vector<std::string> sine = {"loads.tractions=[]", "solver.dt=0.05",
+                                         "contraction={peak_tension: 200, heart_rate: 60, twitch: {shape: sine, systole: 0.3}}"};
+  RunControl rc(accurate_beam(sine));
+  step_engine(rc, 22);  // t = 1.1 s
+  const double peak = 200.0, before = rc.engine().active_tension()[0];
+  EXPECT_NEAR(before, peak * std::pow(std::sin(M_PI * 0.1 / 0.3), 2), 1e-9);
+  ASSERT_TRUE(rc.apply("set_contraction", R"({"heart_rate": 80})").accepted);
+  EXPECT_NEAR(rc.engine().active_tension()[0], before, 1e-9) << "the rate change jumped the twitch";
+  step_engine(rc, 1);  // t = 1.15 s: the sine's peak
+  EXPECT_NEAR(rc.engine().active_tension()[0], peak, 1e-9);
+  ASSERT_TRUE(rc.apply("checkpoint", R"({"name": "steered"})").accepted);
+  step_engine(rc, 10);  // t = 1.65 s: past systole, before the next beat
+  EXPECT_EQ(rc.engine().active_tension()[0], 0.0);
+  step_engine(rc, 2);  // t = 1.75 s: the next beat starts (sin^2 0)
+  EXPECT_NEAR(rc.engine().active_tension()[0], 0.0, 1e-9);
+  const core::Positions x_on = step_engine(rc, 1);  // t = 1.8 s: 0.05 s into it
+  EXPECT_NEAR(rc.engine().active_tension()[0], peak * std::pow(std::sin(M_PI * 0.05 / 0.3), 2), 1e-9);
+  const std::vector<double> tension_on = rc.engine().active_tension();
+  RunControl other(accurate_beam(sine));
+  ASSERT_TRUE(rc.apply("restore", R"({"name": "steered"})").accepted);
+  other.restore_parameter_state(rc.parameter_state_json());
+  other.engine().restore(rc.engine().checkpoint());
+  EXPECT_EQ((step_engine(other, 13) - x_on).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(other.engine().active_tension(), tension_on);
+}
+
 }  // namespace
 }  // namespace fiberfem::service
