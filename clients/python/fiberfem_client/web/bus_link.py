@@ -144,14 +144,15 @@ class BusLink:
                 fresh.setdefault(c.run_id, []).append(c)
         for run, got in fresh.items():
             got.sort(key=lambda c: c.frame)
-            trail = self.circulation.get(run, ())
+            trail = list(self.circulation.get(run, ()))
             if trail and got[0].frame < trail[-1].frame:  # a reset or a seek back: the trail starts again
-                trail = ()
-            # A frame published again (a command while paused republishes the state) replaces its sample.
-            kept = [c for c in got if not trail or c.frame > trail[-1].frame]
-            if trail and len(kept) < len(got):
-                trail = trail[:-1] + (got[len(got) - len(kept) - 1],)
-            self.circulation[run] = (trail + tuple(kept))[-CIRCULATION_TRAIL:]
+                trail = []
+            for c in got:  # a frame published again (a command while paused republishes the state) replaces its sample
+                if trail and c.frame == trail[-1].frame:
+                    trail[-1] = c
+                else:
+                    trail.append(c)
+            self.circulation[run] = tuple(trail[-CIRCULATION_TRAIL:])
             self.notify("circulation", run)
 
     def _write_commands(self):

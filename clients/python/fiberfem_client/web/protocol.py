@@ -88,6 +88,11 @@ def parse(text) -> dict:
     return msg
 
 
+def _json_number(v):
+    """JSON has no NaN or infinity: those are shown as unknown (null)."""
+    return None if isinstance(v, float) and not math.isfinite(v) else v
+
+
 MMHG_PA = 133.322387415  # Pa per mmHg
 ML_M3 = 1e6              # mL per m^3
 
@@ -97,8 +102,6 @@ def circulation_message(run: str, samples, restart: bool) -> dict:
     LV volume mL, LV pressure mmHg, RV volume mL, RV pressure mmHg), oldest first; `restart`
     when the page should drop the points it has. "now" holds the newest sample's pressures
     (mmHg), volumes (mL) and flows (mL/s), "beat" its last complete beat's figures."""
-    def finite(v):
-        return None if not math.isfinite(v) else v
     points = [[c.frame, c.time_s, c.lv_volume_m3 * ML_M3, c.lv_pressure_pa / MMHG_PA,
                c.rv_volume_m3 * ML_M3, c.rv_pressure_pa / MMHG_PA] for c in samples]
     c = samples[-1]
@@ -111,11 +114,11 @@ def circulation_message(run: str, samples, restart: bool) -> dict:
     beat = None
     if c.beat > 0:
         beat = {"beat": c.beat,
-                "lv_stroke_volume_ml": finite(c.lv_stroke_volume_m3 * ML_M3), "lv_ejection_fraction": finite(c.lv_ejection_fraction),
-                "lv_peak_pressure_mmhg": finite(c.lv_peak_pressure_pa / MMHG_PA),
-                "rv_stroke_volume_ml": finite(c.rv_stroke_volume_m3 * ML_M3), "rv_ejection_fraction": finite(c.rv_ejection_fraction),
-                "aortic_max_mmhg": finite(c.systemic_arterial_max_pa / MMHG_PA),
-                "aortic_min_mmhg": finite(c.systemic_arterial_min_pa / MMHG_PA)}
+                "lv_stroke_volume_ml": _json_number(c.lv_stroke_volume_m3 * ML_M3), "lv_ejection_fraction": _json_number(c.lv_ejection_fraction),
+                "lv_peak_pressure_mmhg": _json_number(c.lv_peak_pressure_pa / MMHG_PA),
+                "rv_stroke_volume_ml": _json_number(c.rv_stroke_volume_m3 * ML_M3), "rv_ejection_fraction": _json_number(c.rv_ejection_fraction),
+                "aortic_max_mmhg": _json_number(c.systemic_arterial_max_pa / MMHG_PA),
+                "aortic_min_mmhg": _json_number(c.systemic_arterial_min_pa / MMHG_PA)}
     return {"type": "circulation", "run": run, "restart": restart, "points": points, "now": now, "beat": beat}
 
 
@@ -125,8 +128,6 @@ def status_message(s, beat: float) -> dict:
             "real_time_factor", "step_ms", "solver_iterations", "solver_residual", "parameter_version",
             "heart_rate_bpm", "peak_tension_pa", "dt_s", "recording", "recorded_frames", "last_message",
             "failed_steps", "recovered_steps")
-    def plain(v):  # JSON has no NaN or infinity: those are shown as unknown (null)
-        return None if isinstance(v, float) and not math.isfinite(v) else v
-    out = {k: plain(getattr(s, k)) for k in keys}
-    out.update(type="status", beat=plain(beat))
+    out = {k: _json_number(getattr(s, k)) for k in keys}
+    out.update(type="status", beat=_json_number(beat))
     return out
