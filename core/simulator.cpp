@@ -40,7 +40,7 @@ void SimulatorSettings::validate() const {
 Simulator::Simulator(Model model, SimulatorSettings settings)
     : model_((model.validate(), std::move(model))),
       settings_((settings.validate(), settings)),
-      sys_(model_.mesh, model_.fixed_dofs) {
+      sys_(model_.mesh, model_.fixed_dofs, 32, LoopSchedule::automatic, settings_.dof_order) {
   // The governor's ceiling: the count OpenMP gave this process (OMP_NUM_THREADS, or every
   // core), taken once, before any simulator here set its own.
   static const int process_threads = std::max(1, omp_get_max_threads());
@@ -48,13 +48,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   if (settings_.threads > 0) omp_set_num_threads(settings_.threads);
   caches_.build(model_, /*with_stiffness=*/false);
   const int ne = model_.mesh.num_elements();
-  const int nn = model_.mesh.num_nodes();
-  for (int n = 0; n < nn; ++n)
-    for (int c = 0; c < 3; ++c)
-      if (sys_.free_index()[static_cast<size_t>(3 * n + c)] >= 0) {
-        block_node_.push_back(n);
-        break;
-      }
+  block_node_ = sys_.block_nodes();
   // The one element family of the engine; another (core/element_model.hpp) would be
   // chosen here from the model.
   elements_ = std::make_unique<CorotatedLinearModel>(model_, caches_, block_node_);

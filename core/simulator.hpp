@@ -45,6 +45,10 @@ struct SimulatorSettings {
   /// (small meshes) or where another process keeps a core busy. N > 0: always N. Results do
   /// not depend on the count (core/parallel.hpp).
   int threads = 0;
+  /// Numbering of the free DOFs (core/sparse_system.hpp). Default bandwidth: a mesh
+  /// generator's node numbering is replaced by a local one inside the engine; positions,
+  /// velocities, forces and checkpoints stay in the mesh's node order either way.
+  DofOrder dof_order = DofOrder::bandwidth;
   /// @throws std::invalid_argument naming the field.
   void validate() const;
 };

@@ -2,9 +2,52 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <utility>
 #include <string>
 
 namespace fiberfem::core {
+
+namespace {
+
+// Checkpoints keep the free-DOF data in the mesh's node order (DofOrder::nodes), whatever
+// numbering the engine uses, so that a checkpoint does not depend on it: `to_natural`
+// renumbers this system's items (free DOFs, node blocks, matrix non-zeros) to that order,
+// and back when it is false. Arrays of another size are left as they are (restore's checks
+// name them).
+template <class V>
+void renumber(V& a, const std::vector<int>& map, int per_item, bool to_natural) {
+  if (static_cast<size_t>(a.size()) != map.size() * static_cast<size_t>(per_item) || map.empty()) return;
+  V out = a;
+  for (size_t k = 0; k < map.size(); ++k)
+    for (int j = 0; j < per_item; ++j) {
+      const size_t here = k * static_cast<size_t>(per_item) + static_cast<size_t>(j);
+      const size_t there = static_cast<size_t>(map[k]) * static_cast<size_t>(per_item) + static_cast<size_t>(j);
+      if (to_natural) {
+        out[static_cast<Eigen::Index>(there)] = a[static_cast<Eigen::Index>(here)];
+      } else {
+        out[static_cast<Eigen::Index>(here)] = a[static_cast<Eigen::Index>(there)];
+      }
+    }
+  a = std::move(out);
+}
+
+void renumber_checkpoint(SimulatorCheckpoint& c, const NaturalOrder& o, bool to_natural) {
+  if (o.identity) return;
+  renumber(c.vfree, o.free, 1, to_natural);
+  renumber(c.vfree_prev, o.free, 1, to_natural);
+  renumber(c.block_q, o.block, 1, to_natural);
+  renumber(c.block_R, o.block, 1, to_natural);
+  for (Eigen::VectorXd& r : c.cavity_response) renumber(r, o.free, 1, to_natural);
+  if (c.solver.history_rows == static_cast<Eigen::Index>(o.free.size()))
+    renumber(c.solver.history, o.free, c.solver.history_cols, to_natural);
+  for (LinearSolverState::Factor& f : c.solver.factors) {
+    renumber(f.matrix_values, o.value, 1, to_natural);
+    renumber(f.at_factor, o.block, 1, to_natural);
+    renumber(f.setup_positions, o.block, 3, to_natural);
+  }
+}
+
+}  // namespace
 
 SimulatorCheckpoint Simulator::checkpoint() const {
   SimulatorCheckpoint c;
@@ -13,10 +56,13 @@ SimulatorCheckpoint Simulator::checkpoint() const {
   c.num_nodes = model_.mesh.num_nodes();
   c.num_elements = model_.mesh.num_elements();
   c.solver = solver_->save_state();
+  renumber_checkpoint(c, sys_.natural_order(), /*to_natural=*/true);
   return c;
 }
 
-void Simulator::restore(const SimulatorCheckpoint& c) {
+void Simulator::restore(const SimulatorCheckpoint& saved) {
+  SimulatorCheckpoint c = saved;
+  renumber_checkpoint(c, sys_.natural_order(), /*to_natural=*/false);
   const int nn = model_.mesh.num_nodes(), ne = model_.mesh.num_elements();
   const auto fail = [](const std::string& what) { throw std::invalid_argument("restore: " + what); };
   if (c.num_nodes != nn || c.num_elements != ne)

@@ -1,5 +1,8 @@
 #include "core/sparse_system.hpp"
 
+#include <boost/graph/adjacency_list.hpp>
+#include <boost/graph/cuthill_mckee_ordering.hpp>
+
 #include <algorithm>
 #include <array>
 #include <omp.h>
@@ -60,10 +63,10 @@ const std::vector<std::uint64_t>& morton_keys(const TetMesh& mesh, const std::ve
 }  // namespace
 
 SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>& fixed_dofs,
-                           int chunk_size, LoopSchedule schedule)
+                           int chunk_size, LoopSchedule schedule, DofOrder dof_order)
     : tets_(mesh.tets()), chunk_size_(std::max(1, chunk_size)) {
-  number_free_dofs(mesh.num_nodes(), fixed_dofs);
   const std::vector<std::vector<int>> adj = node_adjacency(mesh.num_nodes(), tets_);
+  number_free_dofs(mesh.num_nodes(), fixed_dofs, adj, dof_order);
   build_pattern(adj);
   build_scatter();
   build_blocks(adj);
@@ -73,11 +76,108 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   plan_zeroing(mesh.num_nodes());
 }
 
-void SparseSystem::number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs) {
+namespace {
+
+// Reverse Cuthill-McKee order of the nodes in `nodes` (the graph of `adj` restricted to
+// them): the nodes, first to last.
+std::vector<int> reverse_cuthill_mckee(const std::vector<int>& nodes, const std::vector<int>& position,
+                                       const std::vector<std::vector<int>>& adj) {
+  using Graph = boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS,
+                                      boost::property<boost::vertex_color_t, boost::default_color_type,
+                                                      boost::property<boost::vertex_degree_t, int>>>;
+  Graph g(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i)
+    for (int w : adj[static_cast<size_t>(nodes[i])]) {
+      const int j = position[static_cast<size_t>(w)];
+      if (j > static_cast<int>(i)) boost::add_edge(i, static_cast<size_t>(j), g);
+    }
+  std::vector<Graph::vertex_descriptor> order(nodes.size());
+  boost::cuthill_mckee_ordering(g, order.rbegin(), boost::get(boost::vertex_color, g), boost::make_degree_map(g));
+  std::vector<int> out(nodes.size());
+  for (size_t k = 0; k < order.size(); ++k) out[k] = nodes[order[k]];
+  return out;
+}
+
+// Envelope of a node numbering (`rank` per node, -1 for nodes left out): the sum over
+// numbered nodes of how far back their earliest numbered neighbour lies.
+long envelope(const std::vector<int>& rank, const std::vector<std::vector<int>>& adj) {
+  long sum = 0;
+  for (size_t v = 0; v < adj.size(); ++v) {
+    if (rank[v] < 0) continue;
+    int lo = rank[v];
+    for (int w : adj[v])
+      if (rank[static_cast<size_t>(w)] >= 0) lo = std::min(lo, rank[static_cast<size_t>(w)]);
+    sum += rank[v] - lo;
+  }
+  return sum;
+}
+
+}  // namespace
+
+void SparseSystem::number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs,
+                                    const std::vector<std::vector<int>>& adj, DofOrder order) {
   num_dofs_ = 3 * num_nodes;
+  const auto is_free = [&](int d) { return fixed_dofs.empty() || !fixed_dofs[static_cast<size_t>(d)]; };
+  std::vector<int> nodes;  // nodes with a free DOF, in the mesh's order
+  std::vector<int> position(static_cast<size_t>(num_nodes), -1);
+  for (int v = 0; v < num_nodes; ++v)
+    if (is_free(3 * v) || is_free(3 * v + 1) || is_free(3 * v + 2)) {
+      position[static_cast<size_t>(v)] = static_cast<int>(nodes.size());
+      nodes.push_back(v);
+    }
+  dof_order_ = DofOrder::nodes;
+  block_nodes_ = nodes;
+  if (order == DofOrder::bandwidth && nodes.size() > 1) {
+    std::vector<int> rcm = reverse_cuthill_mckee(nodes, position, adj);
+    std::vector<int> rank(static_cast<size_t>(num_nodes), -1);
+    for (size_t k = 0; k < rcm.size(); ++k) rank[static_cast<size_t>(rcm[k])] = static_cast<int>(k);
+    if (2 * envelope(rank, adj) < envelope(position, adj)) {
+      dof_order_ = DofOrder::bandwidth;
+      block_nodes_ = std::move(rcm);
+    }
+  }
   free_index_.assign(static_cast<size_t>(num_dofs_), -1);
+  num_free_ = 0;
+  for (int v : block_nodes_)
+    for (int c = 0; c < 3; ++c)
+      if (is_free(3 * v + c)) free_index_[static_cast<size_t>(3 * v + c)] = num_free_++;
+}
+
+const NaturalOrder& SparseSystem::natural_order() const {
+  if (natural_done_) return natural_;
+  natural_ = NaturalOrder{};
+  natural_done_ = true;
+  if (dof_order_ == DofOrder::nodes) return natural_;
+  natural_.identity = false;
+  // DOFs and node blocks: counted in the mesh's node order.
+  natural_.free.assign(static_cast<size_t>(num_free_), -1);
+  int next = 0;
   for (int d = 0; d < num_dofs_; ++d)
-    if (fixed_dofs.empty() || !fixed_dofs[static_cast<size_t>(d)]) free_index_[static_cast<size_t>(d)] = num_free_++;
+    if (free_index_[static_cast<size_t>(d)] >= 0) natural_.free[static_cast<size_t>(free_index_[static_cast<size_t>(d)])] = next++;
+  std::vector<int> sorted = block_nodes_;
+  std::sort(sorted.begin(), sorted.end());
+  std::vector<int> natural_block(static_cast<size_t>(num_dofs_ / 3), -1);
+  for (size_t k = 0; k < sorted.size(); ++k) natural_block[static_cast<size_t>(sorted[k])] = static_cast<int>(k);
+  natural_.block.resize(block_nodes_.size());
+  for (size_t k = 0; k < block_nodes_.size(); ++k) natural_.block[k] = natural_block[static_cast<size_t>(block_nodes_[k])];
+  // Non-zeros: the natural matrix has the same rows (renumbered), each with its columns sorted
+  // by their natural numbers.
+  const int* outer = A_.outerIndexPtr();
+  const int* inner = A_.innerIndexPtr();
+  std::vector<int> natural_row_start(static_cast<size_t>(num_free_) + 1, 0);
+  for (int r = 0; r < num_free_; ++r)
+    natural_row_start[static_cast<size_t>(natural_.free[static_cast<size_t>(r)]) + 1] = outer[r + 1] - outer[r];
+  for (int r = 0; r < num_free_; ++r) natural_row_start[static_cast<size_t>(r) + 1] += natural_row_start[static_cast<size_t>(r)];
+  natural_.value.assign(static_cast<size_t>(A_.nonZeros()), -1);
+  std::vector<std::pair<int, int>> row;  // (natural column, position)
+  for (int r = 0; r < num_free_; ++r) {
+    row.clear();
+    for (int p = outer[r]; p < outer[r + 1]; ++p) row.emplace_back(natural_.free[static_cast<size_t>(inner[p])], p);
+    std::sort(row.begin(), row.end());
+    const int base = natural_row_start[static_cast<size_t>(natural_.free[static_cast<size_t>(r)])];
+    for (size_t k = 0; k < row.size(); ++k) natural_.value[static_cast<size_t>(row[k].second)] = base + static_cast<int>(k);
+  }
+  return natural_;
 }
 
 // The pattern: node adjacency expanded to 3x3 blocks over the free DOFs.
@@ -251,7 +351,7 @@ void SparseSystem::plan_zeroing(int n) {
     }
   const int num_chunks = (static_cast<int>(tets_.size()) + chunk_size_ - 1) / chunk_size_;
   std::vector<std::vector<std::pair<int, int>>> per_chunk(static_cast<size_t>(num_chunks)), per_chunk_blocks(static_cast<size_t>(num_chunks));
-  for (int v = 0; v < n; ++v) {
+  for (int v : block_nodes_) {  // in free order, so that consecutive nodes' rows merge
     int lo = -1, hi = -1;  // free rows of node v
     for (int c = 0; c < 3; ++c) {
       const int r = free_index_[static_cast<size_t>(3 * v + c)];
@@ -290,25 +390,19 @@ void SparseSystem::plan_zeroing(int n) {
 }
 
 void SparseSystem::build_blocks(const std::vector<std::vector<int>>& adj) {
-  // Only when every node is wholly free or wholly fixed: then free node I owns free DOFs
-  // 3I..3I+2 (free indices follow DOF order) and a block is a whole 3 x 3 of the CSR matrix.
+  // Only when every node is wholly free or wholly fixed: then node block I owns free DOFs
+  // 3I..3I+2 and a block is a whole 3 x 3 of the CSR matrix.
   const int n = static_cast<int>(adj.size());
   node_block_.assign(static_cast<size_t>(n), -1);
-  int nb = 0;
-  for (int v = 0; v < n; ++v) {
-    int free = 0;
-    for (int c = 0; c < 3; ++c) free += free_index_[static_cast<size_t>(3 * v + c)] >= 0;
-    if (free == 1 || free == 2) return;  // partly fixed: the CSR path
-    if (free == 3) {
-      if (free_index_[static_cast<size_t>(3 * v)] != 3 * nb) return;
-      node_block_[static_cast<size_t>(v)] = nb++;
-    }
-  }
+  for (int v : block_nodes_)
+    for (int c = 0; c < 3; ++c)
+      if (free_index_[static_cast<size_t>(3 * v + c)] < 0) return;  // partly fixed: the CSR path
+  const int nb = static_cast<int>(block_nodes_.size());
+  for (int I = 0; I < nb; ++I) node_block_[static_cast<size_t>(block_nodes_[static_cast<size_t>(I)])] = I;
   block_start_.assign(static_cast<size_t>(nb) + 1, 0);
   block_col_.clear();
-  for (int v = 0; v < n; ++v) {
-    const int I = node_block_[static_cast<size_t>(v)];
-    if (I < 0) continue;
+  for (int I = 0; I < nb; ++I) {
+    const int v = block_nodes_[static_cast<size_t>(I)];
     block_start_[static_cast<size_t>(I)] = static_cast<int>(block_col_.size());
     block_col_.push_back(I);  // the diagonal block first
     std::vector<int> cols;
@@ -508,15 +602,15 @@ void SparseSystem::colour_chunks(int n, int run_chunks) {
 
 std::vector<int> SparseSystem::node_block_starts() const {
   std::vector<int> starts;
-  for (int i = 0; 3 * i < num_dofs_; ++i) {
+  starts.reserve(block_nodes_.size() + 1);
+  for (int v : block_nodes_)
     for (int c = 0; c < 3; ++c) {
-      const int f = free_index_[static_cast<size_t>(3 * i + c)];
+      const int f = free_index_[static_cast<size_t>(3 * v + c)];
       if (f >= 0) {
         starts.push_back(f);
         break;
       }
     }
-  }
   starts.push_back(num_free_);
   return starts;
 }

@@ -30,6 +30,8 @@ packages=(
   clang libclang-rt-14-dev libomp-14-dev ccache
   # the amg preconditioner (AMGCL, header-only; Debian's contrib component, enabled below)
   libamgcl-dev
+  # Boost.Graph's reverse Cuthill-McKee numbering of the engine's DOFs (header-only)
+  libboost-dev
   # fiberfem web (docs/web.md): headless Chromium and its WebDriver for the browser tests;
   # Python's headers for the bridge's cyclonedds binding, built against the system library
   chromium chromium-driver python3-dev

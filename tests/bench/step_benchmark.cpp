@@ -113,6 +113,7 @@ int g_refresh = 8;
 double g_refresh_budget = 0.0;
 int g_recycled = fiberfem::core::SolverSettings{}.recycled_solutions;
 bool g_double_preconditioner = false;
+bool g_node_order = false;
 double g_energy_gain = core::SimulatorSettings{}.max_energy_gain;
 double g_dt = 1.0 / 60.0;
 // The lagged, warped preconditioner of the rows that name cholesky (--preconditioner amg swaps it).
@@ -130,6 +131,7 @@ core::SimulatorSettings settings_for(const Case& c, double tol) {
   st.solver.refresh_budget = g_refresh_budget;
   st.solver.recycled_solutions = g_recycled;
   st.solver.single_precision_preconditioner = !g_double_preconditioner;
+  if (g_node_order) st.dof_order = core::DofOrder::nodes;
   st.max_energy_gain = c.energy_check ? g_energy_gain : std::numeric_limits<double>::infinity();
   return st;
 }
@@ -248,6 +250,7 @@ int main(int argc, char** argv) {
                  "Cholesky preconditioner refresh budget, in factorisations (0: the threshold alone)")
       ->capture_default_str();
   app.add_flag("--double-preconditioner", g_double_preconditioner, "Apply the Cholesky preconditioner in double precision");
+  app.add_flag("--node-order", g_node_order, "Number the free DOFs in the mesh's node order (SimulatorSettings::dof_order nodes)");
   app.add_option("--recycled-solutions", g_recycled, "PCG warm start: previous solutions projected on (0: extrapolation)")
       ->capture_default_str();
   app.add_option("--max-energy-gain", g_energy_gain, "SimulatorSettings::max_energy_gain (inf: off)")

@@ -47,10 +47,32 @@ std::vector<std::uint8_t> partly_fixed(const core::TetMesh& mesh) {
   return fixed;
 }
 
-std::vector<int> free_dofs(const std::vector<std::uint8_t>& fixed, int num_dofs) {
-  std::vector<int> out;
-  for (int d = 0; d < num_dofs; ++d)
-    if (fixed.empty() || !fixed[static_cast<size_t>(d)]) out.push_back(d);
+// The DOF of each free index of `sys` (whatever its DofOrder).
+std::vector<int> free_dofs(const core::SparseSystem& sys) {
+  std::vector<int> out(static_cast<size_t>(sys.num_free()), -1);
+  for (int d = 0; d < sys.num_dofs(); ++d)
+    if (sys.free_index()[static_cast<size_t>(d)] >= 0) out[static_cast<size_t>(sys.free_index()[static_cast<size_t>(d)])] = d;
+  return out;
+}
+
+// The mesh with its nodes numbered at random (node sets carried over): a numbering that
+// scatters every element's nodes, as a mesh generator's can.
+core::TetMesh scrambled_nodes(const core::TetMesh& mesh, unsigned seed) {
+  std::vector<int> to(static_cast<size_t>(mesh.num_nodes()));
+  for (size_t i = 0; i < to.size(); ++i) to[i] = static_cast<int>(i);
+  std::shuffle(to.begin(), to.end(), std::mt19937(seed));
+  core::Positions x(3, mesh.num_nodes());
+  for (int v = 0; v < mesh.num_nodes(); ++v) x.col(to[static_cast<size_t>(v)]) = mesh.rest_positions().col(v);
+  std::vector<core::Tet> tets = mesh.tets();
+  for (core::Tet& t : tets)
+    for (int& v : t) v = to[static_cast<size_t>(v)];
+  core::TetMesh out(x, tets);
+  for (const auto& [name, nodes] : mesh.node_sets()) {
+    std::vector<int> moved;
+    for (int v : nodes) moved.push_back(to[static_cast<size_t>(v)]);
+    std::sort(moved.begin(), moved.end());
+    out.set_node_set(name, moved);
+  }
   return out;
 }
 
@@ -149,10 +171,10 @@ TEST(SparseSystem, AssemblyOfElementStiffnessesMatchesDenseReference) {
     return core::element_stiffness(core::gather(mesh.rest_positions(), mesh.tets()[static_cast<size_t>(e)]), mat,
                                    fibers[static_cast<size_t>(e)]);
   };
-  Eigen::VectorXd f_ref;
-  const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, Ke_of, &f_ref), free_dofs(fixed, 3 * mesh.num_nodes()));
-
   core::SparseSystem sys(mesh, fixed, 4);
+  Eigen::VectorXd f_ref;
+  const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, Ke_of, &f_ref), free_dofs(sys));
+
   EXPECT_EQ(sys.num_dofs(), 3 * mesh.num_nodes());
   EXPECT_EQ(sys.num_free(), static_cast<int>(K_ref.rows()));
   Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
@@ -174,10 +196,9 @@ TEST(SparseSystem, UnsymmetricElementMatricesAssembleExactly) {
   const core::TetMesh mesh = box({3, 2, 2});
   for (bool with_fixed : {false, true}) {
     const std::vector<std::uint8_t> fixed = with_fixed ? partly_fixed(mesh) : std::vector<std::uint8_t>{};
-    Eigen::VectorXd f_ref;
-    const Eigen::MatrixXd K_ref =
-        restrict_dense(dense_assembly(mesh, random_unsymmetric_block, &f_ref), free_dofs(fixed, 3 * mesh.num_nodes()));
     core::SparseSystem sys(mesh, fixed);
+    Eigen::VectorXd f_ref;
+    const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, random_unsymmetric_block, &f_ref), free_dofs(sys));
     Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
     sys.assemble_unsymmetric(
         [](int e, Mat12& Ke, Vec12& fe) {
@@ -196,10 +217,9 @@ TEST(SparseSystem, LowerNodeBlocksAreNotRead) {
   const core::TetMesh mesh = box({3, 2, 2});
   for (bool with_fixed : {false, true}) {
     const std::vector<std::uint8_t> fixed = with_fixed ? partly_fixed(mesh) : std::vector<std::uint8_t>{};
-    Eigen::VectorXd f_ref;
-    const Eigen::MatrixXd K_ref =
-        restrict_dense(dense_assembly(mesh, random_block, &f_ref), free_dofs(fixed, 3 * mesh.num_nodes()));
     core::SparseSystem sys(mesh, fixed);
+    Eigen::VectorXd f_ref;
+    const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, random_block, &f_ref), free_dofs(sys));
     Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
     sys.assemble(
         [](int e, Mat12& Ke, Vec12& fe) {
@@ -218,10 +238,9 @@ TEST(SparseSystem, UnsymmetricNodeBlocksLandInTheRightPlaces) {
   for (int chunk : {1, 5, 32, 1000}) {
     for (bool with_fixed : {false, true}) {
       const std::vector<std::uint8_t> fixed = with_fixed ? partly_fixed(mesh) : std::vector<std::uint8_t>{};
-      Eigen::VectorXd f_ref;
-      const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, random_block, &f_ref),
-                                                   free_dofs(fixed, 3 * mesh.num_nodes()));
       core::SparseSystem sys(mesh, fixed, chunk);
+      Eigen::VectorXd f_ref;
+      const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, random_block, &f_ref), free_dofs(sys));
       Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
       auto kernel = [](int e, Mat12& Ke, Vec12& fe) {
         Ke = random_block(e);
@@ -259,7 +278,7 @@ TEST(SparseSystem, PatternIsTheNodeAdjacencyOverFreeDofs) {
       for (int j = 0; j < 3; ++j) expected += !fixed[static_cast<size_t>(3 * a + i)] && !fixed[static_cast<size_t>(3 * b + j)];
   EXPECT_EQ(sys.matrix().nonZeros(), expected);
   EXPECT_TRUE(sys.matrix().isCompressed());
-  const std::vector<int> free = free_dofs(fixed, sys.num_dofs());
+  const std::vector<int> free = free_dofs(sys);
   for (int r = 0; r < sys.num_free(); ++r)
     for (core::SparseMatrix::InnerIterator it(sys.matrix(), r); it; ++it) {
       const int na = free[static_cast<size_t>(r)] / 3, nb = free[static_cast<size_t>(it.col())] / 3;
@@ -270,11 +289,12 @@ TEST(SparseSystem, PatternIsTheNodeAdjacencyOverFreeDofs) {
 TEST(SparseSystem, FreeIndexRestrictAndScatter) {
   const core::TetMesh mesh = box({2, 2, 1});
   const std::vector<std::uint8_t> fixed = partly_fixed(mesh);
-  const core::SparseSystem sys(mesh, fixed);
-  const std::vector<int> free = free_dofs(fixed, sys.num_dofs());
-  ASSERT_EQ(sys.num_free(), static_cast<int>(free.size()));
+  const core::SparseSystem sys(mesh, fixed, 32, core::LoopSchedule::automatic, core::DofOrder::nodes);
+  int num_free = 0;
+  for (std::uint8_t f : fixed) num_free += !f;
+  ASSERT_EQ(sys.num_free(), num_free);
   ASSERT_EQ(sys.free_index().size(), static_cast<size_t>(sys.num_dofs()));
-  int next = 0;
+  int next = 0;  // DofOrder::nodes: the free DOFs in DOF order
   for (int d = 0; d < sys.num_dofs(); ++d) {
     if (fixed[static_cast<size_t>(d)]) {
       EXPECT_EQ(sys.free_index()[static_cast<size_t>(d)], -1) << d;
@@ -282,6 +302,8 @@ TEST(SparseSystem, FreeIndexRestrictAndScatter) {
       EXPECT_EQ(sys.free_index()[static_cast<size_t>(d)], next++) << d;
     }
   }
+  EXPECT_TRUE(sys.natural_order().identity);
+  const std::vector<int> free = free_dofs(sys);
   const Eigen::VectorXd full = Eigen::VectorXd::LinSpaced(sys.num_dofs(), 1.0, sys.num_dofs());
   const Eigen::VectorXd r = sys.restrict_to_free(full);
   ASSERT_EQ(r.size(), sys.num_free());
@@ -290,10 +312,73 @@ TEST(SparseSystem, FreeIndexRestrictAndScatter) {
   sys.scatter_free(r, back);
   for (int d = 0; d < sys.num_dofs(); ++d) EXPECT_EQ(back(d), fixed[static_cast<size_t>(d)] ? -7.0 : full(d)) << d;
   // No fixed DOFs: identity maps.
-  const core::SparseSystem all(mesh, {});
+  const core::SparseSystem all(mesh, {}, 32, core::LoopSchedule::automatic, core::DofOrder::nodes);
   EXPECT_EQ(all.num_free(), all.num_dofs());
   for (int d = 0; d < all.num_dofs(); ++d) EXPECT_EQ(all.free_index()[static_cast<size_t>(d)], d);
   EXPECT_EQ(all.restrict_to_free(full), full);
+}
+
+// DofOrder::bandwidth on a mesh whose nodes are numbered at random: the free DOFs are a
+// permutation of the DOF order with each node's free components consecutive and in order,
+// the node blocks follow it, the matrix's envelope shrinks (every row's earliest column comes
+// close), restrict/scatter agree with it, and natural_order() maps every item (DOF, node
+// block, non-zero) to its place under DofOrder::nodes.
+TEST(SparseSystem, BandwidthOrderNumbersNeighboursCloseTogether) {
+  const core::TetMesh mesh = scrambled_nodes(box({12, 3, 3}), 3);
+  const std::vector<std::uint8_t> fixed = partly_fixed(mesh);
+  const core::SparseSystem natural(mesh, fixed, 32, core::LoopSchedule::automatic, core::DofOrder::nodes);
+  const core::SparseSystem sys(mesh, fixed);
+  ASSERT_EQ(sys.dof_order(), core::DofOrder::bandwidth);
+  ASSERT_EQ(sys.num_free(), natural.num_free());
+  std::vector<int> seen(static_cast<size_t>(sys.num_free()), 0);
+  for (int v = 0; v < mesh.num_nodes(); ++v) {
+    int last = -1;
+    for (int c = 0; c < 3; ++c) {
+      const int k = sys.free_index()[static_cast<size_t>(3 * v + c)];
+      EXPECT_EQ(k < 0, fixed[static_cast<size_t>(3 * v + c)] != 0);
+      if (k < 0) continue;
+      ++seen[static_cast<size_t>(k)];
+      if (last >= 0) EXPECT_EQ(k, last + 1) << "node " << v;
+      last = k;
+    }
+  }
+  for (int s : seen) EXPECT_EQ(s, 1);
+  const std::vector<int> starts = sys.node_block_starts();
+  ASSERT_EQ(starts.size(), sys.block_nodes().size() + 1);
+  for (size_t k = 0; k < sys.block_nodes().size(); ++k) {
+    const int v = sys.block_nodes()[k];
+    int first = -1;
+    for (int c = 2; c >= 0; --c)
+      if (sys.free_index()[static_cast<size_t>(3 * v + c)] >= 0) first = sys.free_index()[static_cast<size_t>(3 * v + c)];
+    EXPECT_EQ(starts[k], first);
+  }
+  const auto envelope = [](const core::SparseMatrix& A) {
+    long sum = 0;
+    for (int r = 0; r < A.rows(); ++r) sum += r - std::min(r, A.innerIndexPtr()[A.outerIndexPtr()[r]]);
+    return sum;
+  };
+  EXPECT_LT(envelope(sys.matrix()), envelope(natural.matrix()) / 3);
+  const Eigen::VectorXd full = Eigen::VectorXd::LinSpaced(sys.num_dofs(), 1.0, sys.num_dofs());
+  const Eigen::VectorXd r = sys.restrict_to_free(full);
+  const std::vector<int> free = free_dofs(sys);
+  for (int k = 0; k < sys.num_free(); ++k) EXPECT_EQ(r(k), full(free[static_cast<size_t>(k)]));
+  // natural_order(): the same matrix assembled both ways, item by item.
+  const core::NaturalOrder& o = sys.natural_order();
+  ASSERT_FALSE(o.identity);
+  core::SparseSystem a(mesh, fixed), b(mesh, fixed, 32, core::LoopSchedule::automatic, core::DofOrder::nodes);
+  Eigen::VectorXd fa = Eigen::VectorXd::Zero(a.num_dofs()), fb = fa;
+  const auto kernel = [](int e, Mat12& Ke, Vec12& fe) {
+    Ke = random_block(e);
+    fe = random_force(e);
+  };
+  a.assemble(kernel, fa);
+  b.assemble(kernel, fb);
+  ASSERT_EQ(o.value.size(), static_cast<size_t>(a.matrix().nonZeros()));
+  for (size_t p = 0; p < o.value.size(); ++p)
+    EXPECT_EQ(b.matrix().valuePtr()[o.value[p]], a.matrix().valuePtr()[p]) << "non-zero " << p;
+  const Eigen::VectorXd ra = a.restrict_to_free(full), rb = b.restrict_to_free(full);
+  for (int k = 0; k < sys.num_free(); ++k) EXPECT_EQ(rb(o.free[static_cast<size_t>(k)]), ra(k));
+  for (size_t k = 0; k < o.block.size(); ++k) EXPECT_EQ(natural.block_nodes()[static_cast<size_t>(o.block[k])], sys.block_nodes()[k]);
 }
 
 TEST(SparseSystem, DiagonalIndexPointsAtDiagonalEntries) {
@@ -318,7 +403,7 @@ TEST(SparseSystem, DiagonalIndexPointsAtDiagonalEntries) {
 TEST(SparseSystem, NodeBlockStartsFollowTheNodesFreeComponents) {
   const core::TetMesh mesh = box({2, 2, 2});
   const std::vector<std::uint8_t> fixed = partly_fixed(mesh);
-  const core::SparseSystem sys(mesh, fixed);
+  const core::SparseSystem sys(mesh, fixed, 32, core::LoopSchedule::automatic, core::DofOrder::nodes);
   std::vector<int> expected;
   int f = 0;
   for (int n = 0; n < mesh.num_nodes(); ++n) {
@@ -411,7 +496,7 @@ TEST(SparseSystem, MoreThanSixtyFourConflictingChunksStillAssembleExactly) {
   core::SparseSystem sys(mesh, {}, 0);  // chunk size clamps to 1
   EXPECT_EQ(sys.num_colours(), 100);
   Eigen::VectorXd f_ref;
-  const Eigen::MatrixXd K_ref = dense_assembly(mesh, random_block, &f_ref);
+  const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, random_block, &f_ref), free_dofs(sys));
   Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
   sys.assemble([](int e, Mat12& Ke, Vec12& fe) {
     Ke = random_block(e);
@@ -438,7 +523,7 @@ TEST(SparseSystem, ScatteredElementOrderIsRechunkedInSpace) {
   // serial. Regrouped in space, a few tens at most.
   EXPECT_LE(sys.num_colours(), 24) << "scattered chunks were not regrouped";
   Eigen::VectorXd f_ref;
-  const Eigen::MatrixXd K_ref = dense_assembly(shuffled, random_block, &f_ref);
+  const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(shuffled, random_block, &f_ref), free_dofs(sys));
   Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
   std::vector<std::atomic<int>> calls(static_cast<size_t>(shuffled.num_elements()));
   sys.assemble([&](int e, Mat12& Ke, Vec12& fe) {
@@ -464,7 +549,10 @@ TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
   std::shuffle(shuffled_tets.begin(), shuffled_tets.end(), std::mt19937(7));
   core::TetMesh shuffled(ordered.rest_positions(), shuffled_tets);
   for (const auto& [name, nodes] : ordered.node_sets()) shuffled.set_node_set(name, nodes);
-  for (const core::TetMesh* mesh : {&ordered, &shuffled})
+  const core::TetMesh scrambled = scrambled_nodes(ordered, 5);  // numbered anew (DofOrder::bandwidth)
+  ASSERT_EQ(core::SparseSystem(scrambled, {}).dof_order(), core::DofOrder::bandwidth);
+  const core::TetMesh* meshes[] = {&ordered, &shuffled, &scrambled};
+  for (const core::TetMesh* mesh : meshes)
     for (int chunk : {1, 5, 32, 100000})
       for (core::LoopSchedule schedule : {core::LoopSchedule::chunks, core::LoopSchedule::runs})
       for (int fixing : {0, 1, 2}) {  // none; the xmin face wholly (blocks kept); single components too
@@ -476,10 +564,9 @@ TEST(SparseSystem, BatchedAssemblyReplacesTheValues) {
           for (int v : mesh->node_set("xmin"))
             for (int c = 0; c < 3; ++c) fixed[static_cast<size_t>(3 * v + c)] = 1;
         }
-        Eigen::VectorXd f_ref;
-        const Eigen::MatrixXd K_ref =
-            restrict_dense(dense_assembly(*mesh, random_block, &f_ref), free_dofs(fixed, 3 * mesh->num_nodes()));
         core::SparseSystem sys(*mesh, fixed, chunk, schedule);
+        Eigen::VectorXd f_ref;
+        const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(*mesh, random_block, &f_ref), free_dofs(sys));
         // Runs are taken whenever forced and there is more than one chunk per run.
         if (schedule == core::LoopSchedule::runs && mesh->num_elements() / chunk >= 2 * core::SparseSystem::kRuns) {
           EXPECT_TRUE(sys.runs_in_runs());
