@@ -4,27 +4,33 @@
 
 #include <algorithm>
 #include <cstring>
+#include <stdexcept>
 #include <utility>
 
 namespace fiberfem::core {
 
-CorotatedLinearModel::CorotatedLinearModel(const Model& model, const ElementCaches& caches, std::vector<int> block_nodes)
-    : mesh_(model.mesh), block_node_(std::move(block_nodes)) {
+CorotatedLinearModel::CorotatedLinearModel(const Model& model, const ElementCaches& caches, std::vector<int> block_nodes,
+                                           const std::vector<int>& element_order)
+    : mesh_(model.mesh), order_(element_order), block_node_(std::move(block_nodes)) {
   const int ne = mesh_.num_elements();
+  if (static_cast<int>(order_.size()) != ne) throw std::invalid_argument("CorotatedLinearModel: element order of the wrong size");
+  position_.assign(static_cast<size_t>(ne), -1);
+  for (size_t k = 0; k < order_.size(); ++k) position_[static_cast<size_t>(order_[k])] = static_cast<int>(k);
   elements_.resize(static_cast<size_t>(ne));
-  parallel_for(ne, [&](int e) {
-    const size_t i = static_cast<size_t>(e);
-    elements_[i].Dm_inv = caches.Dm_inv[i];
-    for (int j = 0; j < 3; ++j) elements_[i].Dm.col(j) = caches.X[i].segment<3>(3 * (j + 1)) - caches.X[i].segment<3>(0);
-    elements_[i].fiber = model.fibers[i];
-    elements_[i].volume = mesh_.rest_volume(e);
+  tets_.resize(static_cast<size_t>(ne));
+  region_.resize(static_cast<size_t>(ne));
+  beta_.assign(static_cast<size_t>(ne), 0.0);
+  parallel_for(ne, [&](int kk) {
+    const size_t k = static_cast<size_t>(kk), i = static_cast<size_t>(order_[k]);
+    elements_[k].Dm_inv = caches.Dm_inv[i];
+    for (int j = 0; j < 3; ++j) elements_[k].Dm.col(j) = caches.X[i].segment<3>(3 * (j + 1)) - caches.X[i].segment<3>(0);
+    elements_[k].fiber = model.fibers[i];
+    elements_[k].volume = mesh_.rest_volume(order_[k]);
+    tets_[k] = mesh_.tets()[i];
+    region_[k] = mesh_.regions()[i];
+    if (!model.region_damping.empty()) beta_[k] = model.region_damping[static_cast<size_t>(region_[k])].stiffness_s;
   });
   for (const Material& m : model.region_materials) region_law_.push_back(SpencerConstants::of(m));
-  beta_e_.assign(static_cast<size_t>(ne), 0.0);
-  if (!model.region_damping.empty())
-    for (int e = 0; e < ne; ++e)
-      beta_e_[static_cast<size_t>(e)] =
-          model.region_damping[static_cast<size_t>(mesh_.regions()[static_cast<size_t>(e)])].stiffness_s;
   // The elements around each node (CSR), for the node-block rotations.
   const int nn = mesh_.num_nodes();
   node_elem_start_.assign(static_cast<size_t>(nn) + 1, 0);
@@ -37,22 +43,21 @@ CorotatedLinearModel::CorotatedLinearModel(const Model& model, const ElementCach
     for (int n : mesh_.tets()[static_cast<size_t>(e)]) node_elems_[static_cast<size_t>(fill[static_cast<size_t>(n)]++)] = e;
 }
 
-// Ds - Dm of element e at positions x (its edges' displacements), m.
-Mat3 CorotatedLinearModel::element_edges(const Eigen::VectorXd& x, int e) const {
-  const size_t i = static_cast<size_t>(e);
-  const Tet& t = mesh_.tets()[i];
-  const Mat3& Dm = elements_[i].Dm;
+// Ds - Dm of the element at loop position k at positions x (its edges' displacements), m.
+Mat3 CorotatedLinearModel::element_edges(const Eigen::VectorXd& x, size_t k) const {
+  const Tet& t = tets_[k];
+  const Mat3& Dm = elements_[k].Dm;
   Mat3 D;
   const Vec3 x0 = x.segment<3>(3 * t[0]);
   for (int j = 0; j < 3; ++j) D.col(j) = (x.segment<3>(3 * t[static_cast<size_t>(j + 1)]) - x0) - Dm.col(j);
   return D;
 }
 
-// Deformation gradient of element e at positions x, as F = I + (Ds - Dm) Dm^-1: the
-// round-off is relative to the displacement (F is exactly I at rest, where Ds Dm^-1
-// would leave 1e-16 of strain and a non-zero energy).
-Mat3 CorotatedLinearModel::element_gradient(const Eigen::VectorXd& x, int e) const {
-  Mat3 F = element_edges(x, e) * elements_[static_cast<size_t>(e)].Dm_inv;
+// Deformation gradient of the element at loop position k at positions x, as
+// F = I + (Ds - Dm) Dm^-1: the round-off is relative to the displacement (F is exactly I
+// at rest, where Ds Dm^-1 would leave 1e-16 of strain and a non-zero energy).
+Mat3 CorotatedLinearModel::element_gradient(const Eigen::VectorXd& x, size_t k) const {
+  Mat3 F = element_edges(x, k) * elements_[k].Dm_inv;
   F.diagonal().array() += 1.0;
   return F;
 }
@@ -101,37 +106,41 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
   // F, R, the corotated strain's stress, forces, energy and the warped blocks in closed
   // form (core/spencer_element.hpp: no stored 12 x 12 K^e is read).
   const bool need_rotations = !st.rotations_current;
-  const auto& regions = mesh_.regions();
   constexpr int W = ElementBatch::kWidth;
   static_assert(W <= 4, "rotate_elements takes at most four elements");
   using Lanes = double __attribute__((vector_size(W * sizeof(double))));
   sys.assemble_batched(
       [&](const int* elems, int n, ElementBatch& batch) {
         ChunkAcc& my = acc[static_cast<size_t>(batch.chunk)];
-        // Lanes past n repeat the last element (computed, never scattered).
+        // Lanes past n repeat the last element (computed, never scattered). The model's
+        // per-element data is read at the loop position (in sequence), the state's
+        // rotations at the element.
+        size_t lane_pos[W];
         int lane_elem[W];
-        for (int l = 0; l < W; ++l) lane_elem[l] = elems[std::min(l, n - 1)];
+        for (int l = 0; l < W; ++l) {
+          lane_pos[l] = static_cast<size_t>(batch.first + std::min(l, n - 1));
+          lane_elem[l] = elems[std::min(l, n - 1)];
+        }
         Mat3 D[W], F[W];
         for (int l = 0; l < W; ++l) {
-          const int e = lane_elem[l];
-          D[l] = element_edges(x, e);
+          D[l] = element_edges(x, lane_pos[l]);
           if (l < n) {
-            F[l].noalias() = D[l] * elements_[static_cast<size_t>(e)].Dm_inv;
+            F[l].noalias() = D[l] * elements_[lane_pos[l]].Dm_inv;
             F[l].diagonal().array() += 1.0;
           }
         }
         if (need_rotations) my.inverted += rotate_elements(pass, st, elems, n, F);
         Lanes kv[5], cl, Rl[9], Dil[9], Dl[9], fl[3];
         for (int l = 0; l < W; ++l) {
-          const size_t i = static_cast<size_t>(lane_elem[l]);
-          const SpencerElement& el = elements_[i];
-          const SpencerConstants& law = region_law_[static_cast<size_t>(regions[i])];
+          const size_t i = static_cast<size_t>(lane_elem[l]), k = lane_pos[l];
+          const SpencerElement& el = elements_[k];
+          const SpencerConstants& law = region_law_[static_cast<size_t>(region_[k])];
           kv[0][l] = el.volume * law.lambda;
           kv[1][l] = el.volume * law.mu_t;
           kv[2][l] = el.volume * law.alpha;
           kv[3][l] = el.volume * law.gamma;
           kv[4][l] = el.volume * law.beta;
-          cl[l] = h * beta_e_[i] + h * h;
+          cl[l] = h * beta_[k] + h * h;
           const Mat3& R = st.R[i];
           for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c) {
@@ -153,14 +162,14 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
           for (int l = 0; l < n; ++l) {
             // g^e_a = V f (f . g_a) (PHYSICS.md section 6): the active force is
             // -T_a V (R f)(f . g_a), or along the rest fiber f in the paper's nodal mode.
-            const size_t i = static_cast<size_t>(elems[l]);
-            const SpencerElement& el = elements_[i];
+            const size_t i = static_cast<size_t>(elems[l]), k = lane_pos[l];
+            const SpencerElement& el = elements_[k];
             Vec12& fe = batch.force[l];
             const Vec3 dir = rest_frame_active ? el.fiber : Vec3(st.R[i] * el.fiber);
             const Vec3 s123 = el.Dm_inv * el.fiber;  // f . g_a, a = 1..3
             const double sa[4] = {-(s123(0) + s123(1) + s123(2)), s123(0), s123(1), s123(2)};
             const double tv = st.active_tension_pa[i] * el.volume;
-            const Tet& t = mesh_.tets()[i];
+            const Tet& t = tets_[k];
             for (int a = 0; a < 4; ++a) {
               const Vec3 fa = (-tv * sa[a]) * dir;
               fe.segment<3>(3 * a) += fa;
@@ -188,18 +197,18 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
 
 double CorotatedLinearModel::elastic_energy(const Eigen::VectorXd& x, bool corotation) const {
   const int ne = mesh_.num_elements();
-  return fixed_sum(ne, true, [&](int e) {
-    const size_t i = static_cast<size_t>(e);
-    const Mat3 F = element_gradient(x, e);
+  return fixed_sum(ne, true, [&](int e) {  // in element order, as before the data was stored by position
+    const size_t k = static_cast<size_t>(position_[static_cast<size_t>(e)]);
+    const Mat3 F = element_gradient(x, k);
     const Mat3 R = corotation ? rotation_svd(F) : Mat3::Identity();
-    return spencer_energy(region_law_[static_cast<size_t>(mesh_.regions()[i])], elements_[i], R, F);
+    return spencer_energy(region_law_[static_cast<size_t>(region_[k])], elements_[k], R, F);
   });
 }
 
 int CorotatedLinearModel::count_inverted(const Eigen::VectorXd& x) const {
   int count = 0;
-  for (int e = 0; e < mesh_.num_elements(); ++e)
-    if (element_gradient(x, e).determinant() <= 0) ++count;
+  for (size_t k = 0; k < elements_.size(); ++k)
+    if (element_gradient(x, k).determinant() <= 0) ++count;
   return count;
 }
 
@@ -208,7 +217,7 @@ void CorotatedLinearModel::seed_rotations(SimulatorState& st, bool corotation) c
   const int ne = mesh_.num_elements();
   parallel_for(ne, [&](int e) {
     const size_t i = static_cast<size_t>(e);
-    const Mat3 F = element_gradient(st.x, e);
+    const Mat3 F = element_gradient(st.x, static_cast<size_t>(position_[i]));
     st.R[i] = corotation ? rotation_svd(F) : Mat3::Identity();
     st.q[i] = Eigen::Quaterniond(st.R[i]);
   });
@@ -247,10 +256,12 @@ void CorotatedLinearModel::set_region_material(int region, const Material& mater
 }
 
 void CorotatedLinearModel::set_region_stiffness_damping(int region, double beta_s) {
-  for (int e = 0; e < mesh_.num_elements(); ++e)
-    if (mesh_.regions()[static_cast<size_t>(e)] == region) beta_e_[static_cast<size_t>(e)] = beta_s;
+  for (size_t k = 0; k < region_.size(); ++k)
+    if (region_[k] == region) beta_[k] = beta_s;
 }
 
-void CorotatedLinearModel::set_fiber(int e, const Vec3& unit_fiber) { elements_[static_cast<size_t>(e)].fiber = unit_fiber; }
+void CorotatedLinearModel::set_fiber(int e, const Vec3& unit_fiber) {
+  elements_[static_cast<size_t>(position_[static_cast<size_t>(e)])].fiber = unit_fiber;
+}
 
 }  // namespace fiberfem::core

@@ -23,8 +23,12 @@ class CorotatedLinearModel final : public ElementModel {
  public:
   /// From a validated model and its element caches (rest positions and rest-shape
   /// inverses). `block_nodes`: the node of each free node block, in block order
-  /// (update_node_rotations). Keeps a reference to model.mesh, which must outlive it.
-  CorotatedLinearModel(const Model& model, const ElementCaches& caches, std::vector<int> block_nodes);
+  /// (update_node_rotations). `element_order`: the assembly loop's order
+  /// (SparseSystem::element_order()), in which the model stores what the pass reads per
+  /// element, so that the pass reads it in sequence. Keeps a reference to model.mesh,
+  /// which must outlive it.
+  CorotatedLinearModel(const Model& model, const ElementCaches& caches, std::vector<int> block_nodes,
+                       const std::vector<int>& element_order);
 
   double assemble(const ElementPass& pass, SimulatorState& st, SparseSystem& sys, Eigen::VectorXd& f,
                   Eigen::VectorXd& f_active) override;
@@ -37,14 +41,19 @@ class CorotatedLinearModel final : public ElementModel {
   void set_fiber(int e, const Vec3& unit_fiber) override;
 
  private:
-  Mat3 element_edges(const Eigen::VectorXd& x, int e) const;
-  Mat3 element_gradient(const Eigen::VectorXd& x, int e) const;
+  /// Ds - Dm and F of the element at loop position k.
+  Mat3 element_edges(const Eigen::VectorXd& x, size_t k) const;
+  Mat3 element_gradient(const Eigen::VectorXd& x, size_t k) const;
   static int rotate_elements(const ElementPass& pass, SimulatorState& st, const int* elems, int n, const Mat3* F);
 
   const TetMesh& mesh_;
-  std::vector<SpencerElement> elements_;      // what the pass reads per element
+  // Per element, stored by loop position (position_[e] of element e, order_[k] at k).
+  std::vector<int> order_, position_;
+  std::vector<SpencerElement> elements_;      // what the pass reads
+  std::vector<Tet> tets_;                     // nodes
+  std::vector<int> region_;                   // region
+  std::vector<double> beta_;                  // stiffness damping, s
   std::vector<SpencerConstants> region_law_;  // per region
-  std::vector<double> beta_e_;                // per element stiffness damping, s
   // Node blocks of the free DOFs (for the warp preconditioner): node of each block, and
   // the elements around each node (CSR).
   std::vector<int> block_node_;

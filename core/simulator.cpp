@@ -51,7 +51,7 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   block_node_ = sys_.block_nodes();
   // The one element family of the engine; another (core/element_model.hpp) would be
   // chosen here from the model.
-  elements_ = std::make_unique<CorotatedLinearModel>(model_, caches_, block_node_);
+  elements_ = std::make_unique<CorotatedLinearModel>(model_, caches_, block_node_, sys_.element_order());
   update_node_masses();
   refresh_external_forces();
   check_solver_fits(settings_.solver);

@@ -74,6 +74,25 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   order_chunks(mesh, morton);
   if (schedule != LoopSchedule::chunks) order_runs(mesh, schedule, morton);
   plan_zeroing(mesh.num_nodes());
+  store_in_loop_order();
+}
+
+void SparseSystem::store_in_loop_order() {
+  const size_t ne = order_.size();
+  std::vector<Tet> tets(ne);
+  std::vector<int> offsets(ne), blocks(element_blocks_.empty() ? 0 : 10 * ne), scatter(kBlockIndices * ne);
+  for (size_t k = 0; k < ne; ++k) {
+    const size_t e = static_cast<size_t>(order_[k]);
+    tets[k] = tets_[e];
+    offsets[k] = general_offset_[e];
+    if (!blocks.empty()) std::copy_n(element_blocks_.begin() + static_cast<std::ptrdiff_t>(10 * e), 10, blocks.begin() + static_cast<std::ptrdiff_t>(10 * k));
+    std::copy_n(block_scatter_.begin() + static_cast<std::ptrdiff_t>(kBlockIndices * e), kBlockIndices,
+                scatter.begin() + static_cast<std::ptrdiff_t>(kBlockIndices * k));
+  }
+  tets_ = std::move(tets);
+  general_offset_ = std::move(offsets);
+  element_blocks_ = std::move(blocks);
+  block_scatter_ = std::move(scatter);
 }
 
 namespace {

@@ -29,6 +29,9 @@ struct ElementBatch {
   /// The chunk these elements belong to (SparseSystem::num_chunks()): per-chunk sums,
   /// added in chunk order afterwards, round the same on any number of threads.
   int chunk = 0;
+  /// Loop position of lane 0: lane l is element SparseSystem::element_order()[first + l]
+  /// (per-element data stored in loop order is read at first + l, in sequence).
+  int first = 0;
   alignas(64) double upper[90][kWidth];
   Eigen::Matrix<double, 12, 1> force[kWidth];
   /// Index of block (a, b), b >= a, in the order above.
@@ -117,6 +120,9 @@ class SparseSystem {
   int num_colours() const { return static_cast<int>(colour_chunks_.size()); }
   /// Whether the loop runs in long runs of chunks (LoopSchedule::runs) rather than chunks.
   bool runs_in_runs() const { return run_chunks_ > 1; }
+  /// The element at each position of the loop (chunk after chunk): per-element data kept
+  /// in this order is read in sequence by assemble_batched.
+  const std::vector<int>& element_order() const { return order_; }
   /// Chunks of the element loop (ElementBatch::chunk is below this).
   int num_chunks() const { return (static_cast<int>(tets_.size()) + chunk_size_ - 1) / chunk_size_; }
 
@@ -210,8 +216,10 @@ class SparseSystem {
   std::vector<int> block_nodes_;
   mutable NaturalOrder natural_;
   mutable bool natural_done_ = false;
-  std::vector<Tet> tets_;
+  std::vector<Tet> tets_;   // by element while the constructor orders them, then by loop position
   std::vector<int> order_;  // elements in chunk order (the mesh's, or Morton order of centroids)
+  /// The per-element arrays (tets_, the scatter indices) into loop order, once order_ is final.
+  void store_in_loop_order();
   // The constructor's steps, in order (sparse_system.cpp).
   void number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs,
                         const std::vector<std::vector<int>>& adjacency, DofOrder order);
@@ -238,7 +246,7 @@ class SparseSystem {
   std::vector<int> node_block_;                 // per node: its block row, or -1 (fixed)
   std::vector<int> block_start_, block_col_;     // block rows: blocks block_start_[I] .. [I+1]-1
   std::vector<double> block_values_;             // 9 per block
-  std::vector<int> element_blocks_;              // 10 per element: 2 * block + transposed, or -1
+  std::vector<int> element_blocks_;              // 10 per loop position: 2 * block + transposed, or -1
   std::vector<int> csr_from_block_;              // per CSR value: its index in block_values_
   std::vector<std::pair<int, int>> block_zero_ranges_;  // as zero_ranges_, in block_values_
   mutable ProductSpills spills1_, spills8_;  // of block_product and block_product8
@@ -250,8 +258,8 @@ class SparseSystem {
   // pattern. An element with a fixed DOF has 144 (value index of entry (i, j), column-major,
   // or -1) further on, at general_offset_[e].
   static constexpr int kBlockIndices = 48;
-  std::vector<int> block_scatter_;     // 48 per element (unused for elements with a fixed DOF)
-  std::vector<int> general_offset_;    // per element: offset into general_scatter_, or -1
+  std::vector<int> block_scatter_;     // 48 per loop position (unused for elements with a fixed DOF)
+  std::vector<int> general_offset_;    // per loop position: offset into general_scatter_, or -1
   std::vector<int> general_scatter_;   // 144 per element with a fixed DOF
   int chunk_size_ = 32;
   std::vector<std::vector<int>> colour_chunks_;  // chunk ids per colour, task by task
@@ -311,14 +319,15 @@ void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_ful
       for (int k0 = begin; k0 < end; k0 += W) {
         const int n = std::min(W, end - k0);
         const int* elems = &order_[static_cast<size_t>(k0)];
+        batch.first = k0;
         kernel(elems, n, batch);
         for (int l = 0; l < n; ++l) {
-          const int e = elems[l];
-          const int general = general_offset_[static_cast<size_t>(e)];
+          const size_t pos = static_cast<size_t>(k0 + l);
+          const int general = general_offset_[pos];
           if (blocks) {
             // Ten 3 x 3 blocks into the upper block store (transposed where the element's
             // node order runs against the block order); pairs with a fixed node are skipped.
-            const int* eb = &element_blocks_[static_cast<size_t>(e) * 10];
+            const int* eb = &element_blocks_[pos * 10];
             for (int k = 0; k < 10; ++k) {
               if (eb[k] < 0) continue;
               const double(*blk)[W] = &batch.upper[9 * k];
@@ -331,7 +340,7 @@ void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_ful
               }
             }
           } else if (general < 0) {
-            const int* s = &block_scatter_[static_cast<size_t>(e) * kBlockIndices];
+            const int* s = &block_scatter_[pos * kBlockIndices];
             for (int a = 0; a < 4; ++a)
               for (int b = a; b < 4; ++b) {
                 const double(*blk)[W] = &batch.upper[9 * ElementBatch::block_index(a, b)];
@@ -355,7 +364,7 @@ void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_ful
                 values[idx] += batch.upper[9 * ElementBatch::block_index(a, b) + 3 * i + j][l];
               }
           }
-          const Tet& t = tets_[static_cast<size_t>(e)];
+          const Tet& t = tets_[pos];
           for (int a = 0; a < 4; ++a)
             f_full.segment<3>(3 * t[static_cast<size_t>(a)]) += batch.force[l].segment<3>(3 * a);
         }
@@ -367,14 +376,16 @@ void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_ful
 template <bool Symmetric, class Kernel>
 void SparseSystem::assemble_impl(Kernel&& kernel, Eigen::VectorXd& f_full) {
   double* values = A_.valuePtr();
-  for_each_element_coloured([&](int e) {
+  for_each_chunk_coloured([&](int begin, int end) {
+   for (int position = begin; position < end; ++position) {
+    const size_t pos = static_cast<size_t>(position);
     Eigen::Matrix<double, 12, 12> Ke;
     Eigen::Matrix<double, 12, 1> fe;
-    kernel(e, Ke, fe);
+    kernel(order_[pos], Ke, fe);
     const double* k = Ke.data();  // column-major: entry (i, j) at j * 12 + i
-    const int general = general_offset_[static_cast<size_t>(e)];
+    const int general = general_offset_[pos];
     if (general < 0 && !Symmetric) {
-      const int* s = &block_scatter_[static_cast<size_t>(e) * kBlockIndices];
+      const int* s = &block_scatter_[pos * kBlockIndices];
       for (int a = 0; a < 4; ++a)
         for (int b = 0; b < 4; ++b)
           for (int i = 0; i < 3; ++i) {
@@ -382,7 +393,7 @@ void SparseSystem::assemble_impl(Kernel&& kernel, Eigen::VectorXd& f_full) {
             for (int j = 0; j < 3; ++j) row[j] += k[(3 * b + j) * 12 + 3 * a + i];
           }
     } else if (general < 0) {
-      const int* s = &block_scatter_[static_cast<size_t>(e) * kBlockIndices];
+      const int* s = &block_scatter_[pos * kBlockIndices];
       for (int a = 0; a < 4; ++a)
         for (int b = a; b < 4; ++b)
           for (int i = 0; i < 3; ++i) {
@@ -406,8 +417,9 @@ void SparseSystem::assemble_impl(Kernel&& kernel, Eigen::VectorXd& f_full) {
           values[idx] += (!Symmetric || j / 3 >= i / 3) ? k[j * 12 + i] : k[i * 12 + j];
         }
     }
-    const Tet& t = tets_[static_cast<size_t>(e)];
+    const Tet& t = tets_[pos];
     for (int a = 0; a < 4; ++a) f_full.segment<3>(3 * t[static_cast<size_t>(a)]) += fe.segment<3>(3 * a);
+   }
   });
 }
 

@@ -34,7 +34,7 @@ core::Model small_box(bool isotropic) {
 // The element model and the state and system it works on, as the Simulator holds them.
 struct Pass {
   explicit Pass(bool isotropic)
-      : model(small_box(isotropic)), sys(model.mesh, model.fixed_dofs), elements(model, caches_of(model), all_nodes(model)) {
+      : model(small_box(isotropic)), sys(model.mesh, model.fixed_dofs), elements(model, caches_of(model), sys.block_nodes(), sys.element_order()) {
     const size_t ne = static_cast<size_t>(model.mesh.num_elements());
     st.R.assign(ne, Mat3::Identity());
     st.q.assign(ne, Eigen::Quaterniond::Identity());
@@ -45,11 +45,6 @@ struct Pass {
     core::ElementCaches c;
     c.build(m, /*with_stiffness=*/false);
     return c;
-  }
-  static std::vector<int> all_nodes(const core::Model& m) {
-    std::vector<int> nodes(static_cast<size_t>(m.mesh.num_nodes()));
-    for (size_t n = 0; n < nodes.size(); ++n) nodes[n] = static_cast<int>(n);
-    return nodes;
   }
   // One pass at positions x with exact (SVD) rotations; returns its elastic energy.
   double run(const Eigen::VectorXd& x) {
