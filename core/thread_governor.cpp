@@ -35,6 +35,7 @@ void ThreadGovernor::longer_interval() { interval_ = std::min(kMaxInterval, 2 * 
 
 void ThreadGovernor::start_probe(int count) {
   probing_ = true;
+  pairing_ = false;
   probe_ = count;
   probe_sum_s_ = 0;
   probe_filled_ = 0;
@@ -43,6 +44,7 @@ void ThreadGovernor::start_probe(int count) {
 
 void ThreadGovernor::end_probe(bool switch_to_probe) {
   probing_ = false;
+  pairing_ = false;
   // After the first probe the periodic ones keep their schedule (the next at step
   // kMinInterval), so the early look costs no more probes than before it.
   const int next = first_probe_ ? std::max(1, kMinInterval - kFirstProbe - kFirstProbeSteps) : interval_;
@@ -64,6 +66,24 @@ void ThreadGovernor::record(double step_s, bool comparable) {
     if (probing_ && ++probe_skipped_ > 4 * kProbeSteps) end_probe(false);
     return;
   }
+  if (probing_ && pairing_) {
+    // Steps in the order current, probe, probe, current, ... (each count first in every
+    // other pair), so a drift of the work cancels to first order.
+    if (base_turn_) {  // a step at the current count: also one of its running mean's
+      pair_base_s_ += step_s;
+      measured_ = std::min(measured_ + 1, kMeanSteps);
+      mean_s_ += (step_s - mean_s_) / measured_;
+    } else {
+      pair_probe_s_ += step_s;
+    }
+    ++pair_steps_;
+    base_turn_ = pair_steps_ % 4 == 0 || pair_steps_ % 4 == 3;
+    if (pair_steps_ < 2 * kFirstProbePairs) return;
+    probe_sum_s_ = pair_probe_s_;  // the probe's mean, as end_probe reads it
+    probe_filled_ = kFirstProbePairs;
+    end_probe(pair_probe_s_ < kFirstPairGain * pair_base_s_);
+    return;
+  }
   if (probing_) {
     probe_sum_s_ += step_s;
     ++probe_filled_;
@@ -74,7 +94,14 @@ void ThreadGovernor::record(double step_s, bool comparable) {
     }
     if (probe_filled_ < (first_probe_ ? kFirstProbeSteps : kProbeSteps)) return;
     const bool wins = probe_sum_s_ / probe_filled_ < (first_probe_ ? kFirstProbeGain : kSwitchGain) * mean_s_;
-    if (!wins && !first_probe_) longer_interval();
+    if (!wins && first_probe_) {  // not by a factor of two: compare in pairs
+      pairing_ = true;
+      base_turn_ = true;
+      pair_steps_ = 0;
+      pair_probe_s_ = pair_base_s_ = 0;
+      return;
+    }
+    if (!wins) longer_interval();
     end_probe(wins);
     return;
   }

@@ -14,7 +14,9 @@
 /// last 128 steps (stalls included, at their rate: a mean, not a median), probes a
 /// neighbouring count for a few steps now and then, and moves to the probe's count when its
 /// mean beats the running mean by 10 %. A step far slower than the running mean (a stall)
-/// starts a probe of fewer threads at once, judged against the mean that stall raised.
+/// starts a probe of fewer threads at once, judged against the mean that stall raised. The
+/// first probe, early in a run, compares neighbouring steps in pairs instead
+/// (kFirstProbePairs).
 /// Probes become rarer each time one loses and (faster) each time a stall starts one, so
 /// a machine that keeps stalling one count settles on the other. Switching has no other
 /// effect: the engine's sums round the same on any thread count (core/parallel.hpp).
@@ -38,10 +40,23 @@ class ThreadGovernor {
   static constexpr int kFirstProbe = 8;
   /// Steps of the first probe: enough to see a count that does not work at all.
   static constexpr int kFirstProbeSteps = 3;
-  /// The first probe takes over only when its mean is below this fraction of the running
-  /// mean: it is there for a count that does not work at all, and a mean over the first
-  /// few steps is too noisy to decide a 10 % difference (the later probes do that).
+  /// The first probe takes over at once when its mean is below this fraction of the
+  /// running mean (a count that does not work at all).
   static constexpr double kFirstProbeGain = 0.5;
+  /// Otherwise it goes on in pairs of neighbouring steps, one at the current count and one
+  /// at the probe's (each first in every other pair), and takes over when the probe's
+  /// steps sum to under kFirstPairGain of the current count's. Pairs cancel the drift of the first steps' work (a body released
+  /// from rest takes more iterations each step), which a comparison with the running mean
+  /// of earlier steps would take for a difference between the counts, so a 60-step run
+  /// leaves a count 10 % slower than the other (two threads on a small mesh in the
+  /// machine's slow state) at its 20th step instead of running on it throughout.
+  static constexpr int kFirstProbePairs = 4;
+  /// Neighbouring steps differ by little besides the count (+-2.5 % on four pairs of steps
+  /// that vary by 5 %), so the pairs decide a 5 % difference: on the 5,663-tet beam in
+  /// the machine's slow state one thread took 0.90 of two threads' time, which the 10 % of
+  /// kSwitchGain would have left. Taking a count that is not faster costs nothing (the
+  /// periodic probes return to a faster one).
+  static constexpr double kFirstPairGain = 0.95;
   /// Comparable steps at a count before its running mean is trusted (stalls and probes
   /// wait for them).
   static constexpr int kSettleSteps = 8;
@@ -61,7 +76,7 @@ class ThreadGovernor {
   explicit ThreadGovernor(int max_threads = 1);
 
   /// Threads for the next step.
-  int threads() const { return probing_ ? probe_ : current_; }
+  int threads() const { return probing_ && !(pairing_ && base_turn_) ? probe_ : current_; }
   /// The count the governor has settled on (not a probe's).
   int settled() const { return current_; }
   int max_threads() const { return max_; }
@@ -90,6 +105,12 @@ class ThreadGovernor {
   double probe_sum_s_ = 0;
   int probe_filled_ = 0;
   int probe_skipped_ = 0;  // steps left out during the probe
+  // The first probe's pairs (kFirstProbePairs): whether they are under way, whether the
+  // next step is the current count's, the pairs' steps so far and the two counts' sums.
+  bool pairing_ = false;
+  bool base_turn_ = false;
+  int pair_steps_ = 0;
+  double pair_probe_s_ = 0, pair_base_s_ = 0;
   // The last mean measured at each count (a probe's, or the running mean when a count was
   // left), 0 when never measured: a stall starts no probe of a count already known to be
   // slower than the raised running mean. Counts above kRemembered are not remembered.
