@@ -36,6 +36,12 @@ void CirculationSeries::add(const Engine& engine) {
   if (!enabled_) return;
   const cc::Coupling& coupling = engine.model().circulation;
   const cc::State& s = *engine.circulation_state();
+  if (!beats_started_) {
+    // Beats counted from where the loop counts them: a run resumed from a served run whose
+    // heart rate was changed continues from a moved origin (keep_beat_phase).
+    beats_ = cc::BeatRecorder(coupling.parameters.period_s, s.beat_origin_s);
+    beats_started_ = true;
+  }
   const int iterations = s.time_s > 0 ? engine.circulation_iterations() : 0;
   const cc::Snapshot snap = cc::observe_snapshot(coupling, s, engine.coupled_cavity_volumes(), iterations);
   const std::vector<double> numbers = cc::to_columns(snap);

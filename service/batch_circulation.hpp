@@ -28,7 +28,8 @@ class CirculationSeries {
  private:
   bool enabled_;
   const io::Scene& sc_;
-  core::circulation::BeatRecorder beats_;
+  core::circulation::BeatRecorder beats_;  // made at the first step, from the loop's beat origin then
+  bool beats_started_ = false;
   std::map<std::string, std::vector<double>> series_;  // per-step columns, SI
   std::vector<std::string> order_;                     // column order of the report
   double initial_blood_m3_ = 0, max_drift_m3_ = 0;

@@ -139,7 +139,9 @@ const Snapshot& Monitor::update(const Coupling& coupling, const State& s, const 
   const Beat last = current_.last_beat;
   current_ = observe_snapshot(coupling, s, cavity_volumes_m3, iterations);
   if (s.time_s <= last_time_s_ || period != period_s_) {  // a new run of beats: none complete yet
-    beats_ = BeatRecorder(period, 0.0);
+    // Counted from where the loop counts its beats (moved when the heart rate changed:
+    // keep_beat_phase), so each window holds one beat of the loop's.
+    beats_ = BeatRecorder(period, s.beat_origin_s);
     period_s_ = period;
     beats_seen_ = 0;
   } else {

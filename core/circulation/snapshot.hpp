@@ -58,7 +58,8 @@ std::vector<double> to_columns(const Snapshot& s);
 Snapshot from_columns(const std::vector<std::string>& names, const double* values);
 
 /// Follows a run step by step: the snapshot of its current state, with the figures of the
-/// last complete beat (beats of the loop's period counted from time zero).
+/// last complete beat (beats of the loop's period counted from the loop's beat origin:
+/// time zero, or the start of the beat under way when the heart rate last changed).
 class Monitor {
  public:
   /// Takes the state after a step (`after_step`; its sample counts for the beats) or the

@@ -82,6 +82,50 @@ TEST(Monitor, LastBeatIsTheFiguresOfTheBeatJustCompleted) {
   EXPECT_EQ(monitor.update(coupling, cc::step(coupling.parameters, coupling.initial, h), {}, 0, h, true).last_beat.index, -1);
 }
 
+// After a heart rate change the beat figures follow the loop's beats: the beat under way
+// goes on and the next ones start one new period apart from its start (keep_beat_phase).
+// Each complete beat the monitor reports starts at the loop's beat origin plus whole new
+// periods, and its EDV and ESV are the extremes of the loop's own LV volume over that
+// window. (Windows counted from time zero instead cut the loop's beats in two: the origin
+// here is not a multiple of the new period.)
+TEST(Monitor, AfterAHeartRateChangeTheBeatsFollowTheLoopsOrigin) {
+  cc::Coupling coupling;
+  const double h = 1.0 / 60, old_period = coupling.parameters.period_s, new_period = 0.75 * old_period;
+  cc::State s = coupling.initial;
+  cc::Monitor monitor;
+  monitor.update(coupling, s, {}, 0, h, false);
+  const int before = static_cast<int>(std::lround(1.4 * old_period / h));
+  for (int i = 0; i < before; ++i) monitor.update(coupling, s = cc::step(coupling.parameters, s, h), {}, 1, h, true);
+  cc::keep_beat_phase(s, old_period);  // what set_circulation_parameters does
+  coupling.parameters.period_s = new_period;
+  const double origin = s.beat_origin_s;
+  ASSERT_GT(origin, 0.5 * old_period) << "the beat under way should have begun after the first";
+  ASSERT_GT(std::abs(origin / new_period - std::round(origin / new_period)), 0.1) << "the origin should not fall on the old windows";
+  std::vector<double> t, lv;
+  int checked = 0, last_index = -1;
+  const int after = static_cast<int>(std::lround(4.5 * new_period / h));
+  for (int i = 0; i < after; ++i) {
+    s = cc::step(coupling.parameters, s, h);
+    t.push_back(s.time_s);
+    lv.push_back(s.volume_m3[cc::lv]);
+    const cc::Beat& b = monitor.update(coupling, s, {}, 1, h, true).last_beat;
+    if (b.index < 0 || b.index == last_index) continue;
+    last_index = b.index;
+    const double start = origin + b.index * new_period;
+    EXPECT_NEAR(b.start_s, start, 1e-12);
+    double hi = -1, lo = 1;
+    for (size_t k = 0; k < t.size(); ++k)
+      if (t[k] > start + 1e-9 && t[k] <= start + new_period + 1e-9) {
+        hi = std::max(hi, lv[k]);
+        lo = std::min(lo, lv[k]);
+      }
+    EXPECT_EQ(b.ventricle[0].end_diastolic_m3, hi) << "beat " << b.index;
+    EXPECT_EQ(b.ventricle[0].end_systolic_m3, lo) << "beat " << b.index;
+    ++checked;
+  }
+  EXPECT_GE(checked, 3) << "complete beats after the change";
+}
+
 TEST(Snapshot, CoupledVentriclesTakeTheCavityVolumes) {
   cc::Coupling coupling;
   coupling.cavities.resize(1);
