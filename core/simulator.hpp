@@ -166,6 +166,8 @@ class Simulator {
   /// form of core/spencer_element.hpp; element_stiffness gives K^e when wanted).
   const ElementCaches& caches() const { return caches_; }
   const SparseSystem& system() const { return sys_; }
+  /// The linear solver (its factor_info() for reports and benchmarks).
+  const LinearSolver& linear_solver() const { return *solver_; }
   /// Rotation of each element at the start of the last step.
   const std::vector<Mat3>& rotations() const { return st_.R; }
   /// The thread count the engine has settled on (settings().threads when that is set).
