@@ -163,8 +163,8 @@ class SparseSystem {
   /// Block row I is node block I (free DOFs 3I..3I+2, node block_nodes()[I]); it holds the
   /// blocks (I, J), J >= I, each 9 doubles row-major, the diagonal block first. Half the
   /// values of the CSR matrix and one index per block instead of one per entry: the sparse
-  /// product takes half the time (bench_symmetric_product). After assemble_batched the blocks are current and the
-  /// CSR values are not, until sync_matrix().
+  /// product takes half the time (bench_symmetric_product). After assemble_batched the
+  /// blocks are current and the CSR values are not, until sync_matrix().
   bool has_blocks() const { return block_ok_; }
   bool blocks_current() const { return blocks_current_; }
   /// Fills the CSR values from the blocks (when they are current and it is not); for the
