@@ -45,11 +45,12 @@ class ThreadGovernor {
   static constexpr double kFirstProbeGain = 0.5;
   /// Otherwise it goes on in pairs of neighbouring steps, one at the current count and one
   /// at the probe's (each first in every other pair), and takes over when the probe's
-  /// steps sum to under kFirstPairGain of the current count's. Pairs cancel the drift of the first steps' work (a body released
-  /// from rest takes more iterations each step), which a comparison with the running mean
-  /// of earlier steps would take for a difference between the counts, so a 60-step run
-  /// leaves a count 10 % slower than the other (two threads on a small mesh in the
-  /// machine's slow state) at its 20th step instead of running on it throughout.
+  /// steps sum to under kFirstPairGain of the current count's. Pairs cancel the drift of
+  /// the first steps' work (a body released from rest takes more iterations each step),
+  /// which a comparison with the running mean of earlier steps would take for a difference
+  /// between the counts, so a 60-step run leaves a count 10 % slower than the other (two
+  /// threads on a small mesh in the machine's slow state) at its 20th step instead of
+  /// running on it throughout.
   static constexpr int kFirstProbePairs = 4;
   /// Neighbouring steps differ by little besides the count (+-2.5 % on four pairs of steps
   /// that vary by 5 %), so the pairs decide a 5 % difference: on the 5,663-tet beam in
