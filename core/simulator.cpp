@@ -48,10 +48,9 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
   if (settings_.threads > 0) omp_set_num_threads(settings_.threads);
   caches_.build(model_, /*with_stiffness=*/false);
   const int ne = model_.mesh.num_elements();
-  block_node_ = sys_.block_nodes();
   // The one element family of the engine; another (core/element_model.hpp) would be
   // chosen here from the model.
-  elements_ = std::make_unique<CorotatedLinearModel>(model_, caches_, block_node_, sys_.element_order());
+  elements_ = std::make_unique<CorotatedLinearModel>(model_, caches_, sys_.block_nodes(), sys_.element_order());
   update_node_masses();
   refresh_external_forces();
   check_solver_fits(settings_.solver);
@@ -106,8 +105,8 @@ void Simulator::reset() {
   std::fill(st_.q.begin(), st_.q.end(), Eigen::Quaterniond::Identity());
   st_.rotations_current = false;
   assembled_ahead_ = false;
-  st_.block_q.assign(block_node_.size(), Eigen::Quaterniond::Identity());
-  st_.block_R.assign(block_node_.size(), Mat3::Identity());
+  st_.block_q.assign(sys_.block_nodes().size(), Eigen::Quaterniond::Identity());
+  st_.block_R.assign(sys_.block_nodes().size(), Mat3::Identity());
   solver_->invalidate();
   solver_->forget_solutions();
   st_.vfree = Eigen::VectorXd::Zero(sys_.num_free());

@@ -243,8 +243,6 @@ class Simulator {
   Eigen::VectorXd f_ext_const_;     // 3N, its part that never changes
   std::vector<const SurfaceLoad*> varying_loads_;  // ramped or follower (into model_.loads)
   TwitchTable tension_table_;       // the contraction's normalised beat, tabulated
-  // Node of each free node block (for the warp and amg preconditioners).
-  std::vector<int> block_node_;
   Eigen::VectorXd block_x_;  // node-block positions for the amg preconditioner
   // work
   Eigen::VectorXd f_, rhs_;

@@ -134,9 +134,10 @@ bool Simulator::solve_free(double h, StepReport& r, std::string& why) {
     solver_->set_block_rotations(st_.block_R);
   }
   if (solver_->uses_block_positions()) {
-    block_x_.resize(3 * static_cast<Eigen::Index>(block_node_.size()));
-    for (size_t k = 0; k < block_node_.size(); ++k)
-      block_x_.segment<3>(3 * static_cast<Eigen::Index>(k)) = st_.x.segment<3>(3 * static_cast<Eigen::Index>(block_node_[k]));
+    const std::vector<int>& block_node = sys_.block_nodes();
+    block_x_.resize(3 * static_cast<Eigen::Index>(block_node.size()));
+    for (size_t k = 0; k < block_node.size(); ++k)
+      block_x_.segment<3>(3 * static_cast<Eigen::Index>(k)) = st_.x.segment<3>(3 * static_cast<Eigen::Index>(block_node[k]));
     solver_->set_block_positions(block_x_);
   }
   if (!solver_->reads_blocks()) sys_.sync_matrix();

@@ -130,6 +130,20 @@ Eigen::MatrixXd restrict_dense(const Eigen::MatrixXd& K, const std::vector<int>&
   return R;
 }
 
+// Assembles random_block and random_force into `sys` (a fresh system of `mesh`) and compares
+// the matrix and the forces with the dense reference.
+void expect_random_assembly_exact(const core::TetMesh& mesh, core::SparseSystem& sys) {
+  Eigen::VectorXd f_ref;
+  const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, random_block, &f_ref), free_dofs(sys));
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
+  sys.assemble([](int e, Mat12& Ke, Vec12& fe) {
+    Ke = random_block(e);
+    fe = random_force(e);
+  }, f);
+  EXPECT_LT((Eigen::MatrixXd(sys.matrix()) - K_ref).norm(), 1e-13 * K_ref.norm());
+  EXPECT_LT((f - f_ref).norm(), 1e-13 * f_ref.norm());
+}
+
 core::Material ti_material() {
   core::EngineeringConstants c;
   c.E_L = 90e3;
@@ -402,15 +416,7 @@ TEST(SparseSystem, BandwidthOrderNumbersEveryComponentOfADisconnectedMesh) {
     ++seen[static_cast<size_t>(k)];
   }
   for (int c : seen) EXPECT_EQ(c, 1);
-  Eigen::VectorXd f_ref;
-  const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, random_block, &f_ref), free_dofs(sys));
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
-  sys.assemble([](int e, Mat12& Ke, Vec12& fe) {
-    Ke = random_block(e);
-    fe = random_force(e);
-  }, f);
-  EXPECT_LT((Eigen::MatrixXd(sys.matrix()) - K_ref).norm(), 1e-13 * K_ref.norm());
-  EXPECT_LT((f - f_ref).norm(), 1e-13 * f_ref.norm());
+  expect_random_assembly_exact(mesh, sys);
 }
 
 TEST(SparseSystem, DiagonalIndexPointsAtDiagonalEntries) {
@@ -527,15 +533,7 @@ TEST(SparseSystem, MoreThanSixtyFourConflictingChunksStillAssembleExactly) {
   const core::TetMesh mesh = fan(100);
   core::SparseSystem sys(mesh, {}, 0);  // chunk size clamps to 1
   EXPECT_EQ(sys.num_colours(), 100);
-  Eigen::VectorXd f_ref;
-  const Eigen::MatrixXd K_ref = restrict_dense(dense_assembly(mesh, random_block, &f_ref), free_dofs(sys));
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(sys.num_dofs());
-  sys.assemble([](int e, Mat12& Ke, Vec12& fe) {
-    Ke = random_block(e);
-    fe = random_force(e);
-  }, f);
-  EXPECT_LT((Eigen::MatrixXd(sys.matrix()) - K_ref).norm(), 1e-13 * K_ref.norm());
-  EXPECT_LT((f - f_ref).norm(), 1e-13 * f_ref.norm());
+  expect_random_assembly_exact(mesh, sys);
 }
 
 // A mesh whose elements come in a scattered order (as a mesh generator writes them):
