@@ -86,7 +86,8 @@ core::StepReport AccurateEngine::step() {
   rep.time.assembly_s = after.assembly_s - before.assembly_s;
   rep.time.solve_s = after.factor_s - before.factor_s;
   rep.time_s = solver_->time_s();
-  // Kinetic energy of the lumped masses and the fastest node, of the state now.
+  // Energies (kinetic of the lumped masses) and the fastest node, of the state now.
+  rep.elastic_energy_j = solver_->elastic_energy_j();
   const Eigen::VectorXd& m = solver_->node_masses();
   const core::Positions& v = solver_->velocities();
   for (int n = 0; n < v.cols(); ++n) {

@@ -53,6 +53,7 @@ DynamicStepReport DynamicSolver::solve_step(const Loading& loading, Positions& x
   NewtonReport counters;
   bool singular = false;
   const bool converged = newton_iterate(assembler_, linear_, residual, settings_.newton, x, p, R, K_, ev, counters, singular);
+  if (converged) solved_energy_j_ = ev.energy_j;  // newton_iterate's last evaluation is at x
   return finish_solve(counters, converged, singular);
 }
 
@@ -76,11 +77,14 @@ DynamicStepReport DynamicSolver::solve_step_bordered(Loading loading, const std:
                                                      Eigen::VectorXd& p, Eigen::VectorXd& P) {
   const double h = dt_s();
   loading.pressure_factors.resize(problem_.pressures.size(), 1.0);
+  // The tangent evaluations are at the iterates taken: the last is at the converged end.
+  double energy_at_iterate = 0;
   border.residual = [&](const Positions& xx, const Eigen::VectorXd& pp, const Eigen::VectorXd& PP, Eigen::VectorXd& R,
                         SparseMatrix* K) {
     for (size_t k = 0; k < loads.size(); ++k) loading.pressure_factors[static_cast<size_t>(loads[k])] = PP(static_cast<Eigen::Index>(k));
     const Evaluation ev = assembler_.evaluate(xx, pp, loading, R, K);
     assembler_.add_inertia(xx, x_, v_, h, settings_.mass_damping_1_s, R, K);
+    if (K != nullptr) energy_at_iterate = ev.energy_j;
     return ev;
   };
   border.unit_residuals = [&](const Positions& xx, std::vector<Eigen::VectorXd>& u) {
@@ -99,6 +103,7 @@ DynamicStepReport DynamicSolver::solve_step_bordered(Loading loading, const std:
   } catch (const std::runtime_error& e) {  // the constraints could not be evaluated
     counters.message = e.what();
   }
+  if (converged) solved_energy_j_ = energy_at_iterate;
   return finish_solve(counters, converged, singular);
 }
 
@@ -106,6 +111,7 @@ void DynamicSolver::accept_step(const Positions& x, const Eigen::VectorXd& p) {
   v_ = (x - x_) / dt_s();
   x_ = x;
   p_ = p;
+  energy_j_ = solved_energy_j_;
   t_s_ += dt_s();
   if (++substep_ == substeps_) {
     substep_ = 0;
@@ -145,6 +151,8 @@ void DynamicSolver::restore(const DynamicState& s) {
   t_s_ = s.time_s;
   steps_ = s.steps;
   substep_ = 0;
+  Eigen::VectorXd R;
+  energy_j_ = assembler_.evaluate(x_, p_, Loading{}, R, nullptr).energy_j;  // this problem's laws
 }
 
 NewtonReport DynamicSolver::totals() const {

@@ -84,6 +84,10 @@ class DynamicSolver {
   const Positions& positions() const { return x_; }
   const Positions& velocities() const { return v_; }
   const Eigen::VectorXd& pressures() const { return p_; }
+  /// Stored strain energy of the state (the laws' and the volumetric penalty's, not the
+  /// active tension's), J: from the converged evaluation of the step that made the state
+  /// (no extra cost), evaluated anew after a restore.
+  double elastic_energy_j() const { return energy_j_; }
   /// The state between steps (copies, including the lagged factor's matrices).
   DynamicState state() const;
   /// Continues from a state() of a solver of the same problem (or of one that differs in
@@ -118,6 +122,8 @@ class DynamicSolver {
   double t_s_ = 0;
   long steps_ = 0;
   int substeps_ = 1, substep_ = 0;  // substeps per step, and those taken of this step
+  double energy_j_ = 0;         // elastic_energy_j() of the state
+  double solved_energy_j_ = 0;  // of the last converged solve, taken by accept_step
   NewtonReport totals_;
 };
 

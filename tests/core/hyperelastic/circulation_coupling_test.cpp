@@ -101,6 +101,12 @@ Trace run(double tolerance, int steps) {
     r.pressure.push_back(st.external_pa[0]);
     r.volume.push_back(coupled.volumes()[0]);
   }
+  // The state's stored energy is that of its positions and pressures (the last iterate's).
+  const Assembler assembler(s.problem);
+  Eigen::VectorXd R;
+  const double energy = assembler.evaluate(solver.positions(), solver.pressures(), Loading{}, R, nullptr).energy_j;
+  EXPECT_GT(energy, 0);
+  EXPECT_NEAR(solver.elastic_energy_j(), energy, 1e-12 * energy);
   return r;
 }
 
