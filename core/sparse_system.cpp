@@ -1,10 +1,13 @@
 #include "core/sparse_system.hpp"
 
-#include <boost/graph/adjacency_list.hpp>
+#include <boost/graph/compressed_sparse_row_graph.hpp>
 #include <boost/graph/cuthill_mckee_ordering.hpp>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <mutex>
+#include <string>
 #include <omp.h>
 #include <cstdint>
 #include <stdexcept>
@@ -13,18 +16,54 @@ namespace fiberfem::core {
 
 namespace {
 
-// Node adjacency through elements: for each node, the sorted nodes it shares an element
-// with (itself included).
-std::vector<std::vector<int>> node_adjacency(int num_nodes, const std::vector<Tet>& tets) {
-  std::vector<std::vector<int>> adj(static_cast<size_t>(num_nodes));
+// parallel_for for the constructor's loops, whose lookups throw std::logic_error when the
+// pattern does not hold an entry: an exception may not leave a parallel region, so the
+// first one is caught there and thrown again after the loop.
+template <class Body>
+void parallel_for_checked(int n, Body&& body) {
+  std::atomic<bool> failed{false};
+  std::string what;
+  std::mutex m;
+  parallel_for(n, [&](int i) {
+    if (failed.load(std::memory_order_relaxed)) return;
+    try {
+      body(i);
+    } catch (const std::logic_error& e) {
+      const std::lock_guard<std::mutex> lock(m);
+      if (!failed.exchange(true)) what = e.what();
+    }
+  });
+  if (failed) throw std::logic_error(what);
+}
+
+// Node adjacency through elements, compressed: each element adds its four nodes to each
+// of its nodes' rows, then every row is sorted and its repeats dropped.
+detail::NodeGraph node_graph(int num_nodes, const std::vector<Tet>& tets) {
+  const size_t n = static_cast<size_t>(num_nodes);
+  std::vector<int> raw_start(n + 1, 0);
+  for (const Tet& t : tets)
+    for (int a : t) raw_start[static_cast<size_t>(a) + 1] += 4;
+  for (size_t v = 0; v < n; ++v) raw_start[v + 1] += raw_start[v];
+  std::vector<int> raw(static_cast<size_t>(raw_start[n])), fill(raw_start.begin(), raw_start.end() - 1);
   for (const Tet& t : tets)
     for (int a : t)
-      for (int b : t) adj[static_cast<size_t>(a)].push_back(b);
-  for (auto& l : adj) {
-    std::sort(l.begin(), l.end());
-    l.erase(std::unique(l.begin(), l.end()), l.end());
-  }
-  return adj;
+      for (int b : t) raw[static_cast<size_t>(fill[static_cast<size_t>(a)]++)] = b;
+  std::vector<int> count(n);
+  parallel_for(num_nodes, [&](int v) {
+    int* first = raw.data() + raw_start[static_cast<size_t>(v)];
+    int* last = raw.data() + raw_start[static_cast<size_t>(v) + 1];
+    std::sort(first, last);
+    count[static_cast<size_t>(v)] = static_cast<int>(std::unique(first, last) - first);
+  });
+  detail::NodeGraph g;
+  g.start.assign(n + 1, 0);
+  for (size_t v = 0; v < n; ++v) g.start[v + 1] = g.start[v] + count[v];
+  g.nodes.resize(static_cast<size_t>(g.start[n]));
+  parallel_for(num_nodes, [&](int v) {
+    std::copy_n(raw.begin() + raw_start[static_cast<size_t>(v)], count[static_cast<size_t>(v)],
+                g.nodes.begin() + g.start[static_cast<size_t>(v)]);
+  });
+  return g;
 }
 
 Vec3 centroid(const TetMesh& mesh, const Tet& t) {
@@ -65,53 +104,53 @@ const std::vector<std::uint64_t>& morton_keys(const TetMesh& mesh, const std::ve
 SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>& fixed_dofs,
                            int chunk_size, LoopSchedule schedule, DofOrder dof_order)
     : tets_(mesh.tets()), chunk_size_(std::max(1, chunk_size)) {
-  const std::vector<std::vector<int>> adj = node_adjacency(mesh.num_nodes(), tets_);
-  number_free_dofs(mesh.num_nodes(), fixed_dofs, adj, dof_order);
-  build_pattern(adj);
-  build_scatter();
-  build_blocks(adj);
+  const detail::NodeGraph graph = node_graph(mesh.num_nodes(), tets_);
+  number_free_dofs(mesh.num_nodes(), fixed_dofs, graph, dof_order);
+  const detail::BlockRows rows = block_rows(graph);
+  build_pattern(rows);
+  build_blocks(rows);
   std::vector<std::uint64_t> morton;  // per element, computed when first needed
   order_chunks(mesh, morton);
   if (schedule != LoopSchedule::chunks) order_runs(mesh, schedule, morton);
   plan_zeroing(mesh.num_nodes());
   store_in_loop_order();
+  // Per loop position from here, the elements' nodes close together in memory.
+  build_scatter(rows);
+  build_element_blocks(rows);
 }
 
 void SparseSystem::store_in_loop_order() {
-  const size_t ne = order_.size();
-  std::vector<Tet> tets(ne);
-  std::vector<int> offsets(ne), blocks(element_blocks_.empty() ? 0 : 10 * ne), scatter(kBlockIndices * ne);
-  for (size_t k = 0; k < ne; ++k) {
-    const size_t e = static_cast<size_t>(order_[k]);
-    tets[k] = tets_[e];
-    offsets[k] = general_offset_[e];
-    if (!blocks.empty()) std::copy_n(element_blocks_.begin() + static_cast<std::ptrdiff_t>(10 * e), 10, blocks.begin() + static_cast<std::ptrdiff_t>(10 * k));
-    std::copy_n(block_scatter_.begin() + static_cast<std::ptrdiff_t>(kBlockIndices * e), kBlockIndices,
-                scatter.begin() + static_cast<std::ptrdiff_t>(kBlockIndices * k));
-  }
+  std::vector<Tet> tets(order_.size());
+  for (size_t k = 0; k < order_.size(); ++k) tets[k] = tets_[static_cast<size_t>(order_[k])];
   tets_ = std::move(tets);
-  general_offset_ = std::move(offsets);
-  element_blocks_ = std::move(blocks);
-  block_scatter_ = std::move(scatter);
 }
 
 namespace {
 
-// Reverse Cuthill-McKee order of the nodes in `nodes` (the graph of `adj` restricted to
-// them): the nodes, first to last.
+// Reverse Cuthill-McKee order of the nodes in `nodes` (the graph restricted to them):
+// the nodes, first to last. The graph goes to Boost as a compressed graph with both
+// directions of every edge, each vertex's edges in increasing order.
 std::vector<int> reverse_cuthill_mckee(const std::vector<int>& nodes, const std::vector<int>& position,
-                                       const std::vector<std::vector<int>>& adj) {
-  using Graph = boost::adjacency_list<boost::vecS, boost::vecS, boost::undirectedS,
-                                      boost::property<boost::vertex_color_t, boost::default_color_type,
-                                                      boost::property<boost::vertex_degree_t, int>>>;
-  Graph g(nodes.size());
-  for (size_t i = 0; i < nodes.size(); ++i)
-    for (int w : adj[static_cast<size_t>(nodes[i])]) {
-      const int j = position[static_cast<size_t>(w)];
-      if (j > static_cast<int>(i)) boost::add_edge(i, static_cast<size_t>(j), g);
+                                       const detail::NodeGraph& graph) {
+  using Graph = boost::compressed_sparse_row_graph<boost::directedS>;
+  std::vector<std::pair<int, int>> edges;
+  edges.reserve(graph.nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    const size_t v = static_cast<size_t>(nodes[i]);
+    for (int k = graph.start[v]; k < graph.start[v + 1]; ++k) {
+      const int j = position[static_cast<size_t>(graph.nodes[static_cast<size_t>(k)])];
+      if (j >= 0 && j != static_cast<int>(i)) edges.emplace_back(static_cast<int>(i), j);
     }
+  }
+  // Sources in order, and each one's targets too (positions follow the node order).
+  const Graph g(boost::edges_are_sorted, edges.begin(), edges.end(), nodes.size());
+  std::vector<int> degree(nodes.size());
+  for (size_t i = 0; i < nodes.size(); ++i) degree[i] = static_cast<int>(boost::out_degree(i, g));
+  std::vector<boost::default_color_type> colour(nodes.size());
+  const auto index = boost::get(boost::vertex_index, g);
   std::vector<Graph::vertex_descriptor> order(nodes.size());
-  boost::cuthill_mckee_ordering(g, order.rbegin(), boost::get(boost::vertex_color, g), boost::make_degree_map(g));
+  boost::cuthill_mckee_ordering(g, order.rbegin(), boost::make_iterator_property_map(colour.begin(), index),
+                                boost::make_iterator_property_map(degree.begin(), index));
   std::vector<int> out(nodes.size());
   for (size_t k = 0; k < order.size(); ++k) out[k] = nodes[order[k]];
   return out;
@@ -119,13 +158,15 @@ std::vector<int> reverse_cuthill_mckee(const std::vector<int>& nodes, const std:
 
 // Envelope of a node numbering (`rank` per node, -1 for nodes left out): the sum over
 // numbered nodes of how far back their earliest numbered neighbour lies.
-long envelope(const std::vector<int>& rank, const std::vector<std::vector<int>>& adj) {
+long envelope(const std::vector<int>& rank, const detail::NodeGraph& graph) {
   long sum = 0;
-  for (size_t v = 0; v < adj.size(); ++v) {
+  for (size_t v = 0; v + 1 < graph.start.size(); ++v) {
     if (rank[v] < 0) continue;
     int lo = rank[v];
-    for (int w : adj[v])
-      if (rank[static_cast<size_t>(w)] >= 0) lo = std::min(lo, rank[static_cast<size_t>(w)]);
+    for (int k = graph.start[v]; k < graph.start[v + 1]; ++k) {
+      const int w = rank[static_cast<size_t>(graph.nodes[static_cast<size_t>(k)])];
+      if (w >= 0) lo = std::min(lo, w);
+    }
     sum += rank[v] - lo;
   }
   return sum;
@@ -133,8 +174,8 @@ long envelope(const std::vector<int>& rank, const std::vector<std::vector<int>>&
 
 }  // namespace
 
-void SparseSystem::number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs,
-                                    const std::vector<std::vector<int>>& adj, DofOrder order) {
+void SparseSystem::number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs, const detail::NodeGraph& graph,
+                                    DofOrder order) {
   num_dofs_ = 3 * num_nodes;
   const auto is_free = [&](int d) { return fixed_dofs.empty() || !fixed_dofs[static_cast<size_t>(d)]; };
   std::vector<int> nodes;  // nodes with a free DOF, in the mesh's order
@@ -147,10 +188,10 @@ void SparseSystem::number_free_dofs(int num_nodes, const std::vector<std::uint8_
   dof_order_ = DofOrder::nodes;
   block_nodes_ = nodes;
   if (order == DofOrder::bandwidth && nodes.size() > 1) {
-    std::vector<int> rcm = reverse_cuthill_mckee(nodes, position, adj);
+    std::vector<int> rcm = reverse_cuthill_mckee(nodes, position, graph);
     std::vector<int> rank(static_cast<size_t>(num_nodes), -1);
     for (size_t k = 0; k < rcm.size(); ++k) rank[static_cast<size_t>(rcm[k])] = static_cast<int>(k);
-    if (2 * envelope(rank, adj) < envelope(position, adj)) {
+    if (2 * envelope(rank, graph) < envelope(position, graph)) {
       dof_order_ = DofOrder::bandwidth;
       block_nodes_ = std::move(rcm);
     }
@@ -160,6 +201,53 @@ void SparseSystem::number_free_dofs(int num_nodes, const std::vector<std::uint8_
   for (int v : block_nodes_)
     for (int c = 0; c < 3; ++c)
       if (is_free(3 * v + c)) free_index_[static_cast<size_t>(3 * v + c)] = num_free_++;
+}
+
+int detail::BlockRows::find(int K, int J) const {
+  const auto first = block.begin() + start[static_cast<size_t>(K)], last = block.begin() + start[static_cast<size_t>(K) + 1];
+  const auto it = std::lower_bound(first, last, J);
+  if (it == last || *it != J) throw std::logic_error("sparse pattern lookup failed");
+  return static_cast<int>(it - block.begin());
+}
+
+detail::BlockRows SparseSystem::block_rows(const detail::NodeGraph& graph) const {
+  const int nb = static_cast<int>(block_nodes_.size());
+  detail::BlockRows rows;
+  rows.row_of_node.assign(graph.start.size() - 1, -1);
+  for (int K = 0; K < nb; ++K) rows.row_of_node[static_cast<size_t>(block_nodes_[static_cast<size_t>(K)])] = K;
+  const auto neighbours = [&](int K) {
+    const size_t v = static_cast<size_t>(block_nodes_[static_cast<size_t>(K)]);
+    return std::make_pair(graph.nodes.begin() + graph.start[v], graph.nodes.begin() + graph.start[v + 1]);
+  };
+  rows.start.assign(static_cast<size_t>(nb) + 1, 0);
+  for (int K = 0; K < nb; ++K) {
+    const auto [first, last] = neighbours(K);
+    rows.start[static_cast<size_t>(K) + 1] =
+        rows.start[static_cast<size_t>(K)] +
+        static_cast<int>(std::count_if(first, last, [&](int w) { return rows.row_of_node[static_cast<size_t>(w)] >= 0; }));
+  }
+  rows.block.resize(static_cast<size_t>(rows.start.back()));
+  rows.column.resize(rows.block.size());
+  const auto free_count = [&](int J) {
+    const int v = block_nodes_[static_cast<size_t>(J)];
+    int c = 0;
+    for (int d = 0; d < 3; ++d) c += free_index_[static_cast<size_t>(3 * v + d)] >= 0;
+    return c;
+  };
+  parallel_for(nb, [&](int K) {
+    const auto [first, last] = neighbours(K);
+    int* out = rows.block.data() + rows.start[static_cast<size_t>(K)];
+    for (auto it = first; it != last; ++it)
+      if (const int J = rows.row_of_node[static_cast<size_t>(*it)]; J >= 0) *out++ = J;
+    const int begin = rows.start[static_cast<size_t>(K)], end = rows.start[static_cast<size_t>(K) + 1];
+    std::sort(rows.block.begin() + begin, rows.block.begin() + end);
+    int column = 0;
+    for (int k = begin; k < end; ++k) {
+      rows.column[static_cast<size_t>(k)] = column;
+      column += free_count(rows.block[static_cast<size_t>(k)]);
+    }
+  });
+  return rows;
 }
 
 const NaturalOrder& SparseSystem::natural_order() const {
@@ -199,32 +287,42 @@ const NaturalOrder& SparseSystem::natural_order() const {
   return natural_;
 }
 
-// The pattern: node adjacency expanded to 3x3 blocks over the free DOFs.
-void SparseSystem::build_pattern(const std::vector<std::vector<int>>& adj) {
-  const int n = static_cast<int>(adj.size());
+// The pattern: each block row's neighbours expanded to their free DOFs, written straight
+// into the compressed arrays (rows in free order are block rows in order, and each of a
+// node's rows has the same columns).
+void SparseSystem::build_pattern(const detail::BlockRows& rows) {
+  const int nb = static_cast<int>(block_nodes_.size());
+  std::vector<int> first_row(static_cast<size_t>(nb) + 1);  // free rows of block K: first_row[K] ..
+  for (int K = 0, r = 0; K < nb; ++K) {
+    first_row[static_cast<size_t>(K)] = r;
+    for (int c = 0; c < 3; ++c) r += free_index_[static_cast<size_t>(3 * block_nodes_[static_cast<size_t>(K)] + c)] >= 0;
+    first_row[static_cast<size_t>(K) + 1] = r;
+  }
+  const auto row_length = [&](int K) {  // the columns of each of block K's rows
+    const int last = rows.start[static_cast<size_t>(K) + 1] - 1;
+    const int v = block_nodes_[static_cast<size_t>(rows.block[static_cast<size_t>(last)])];
+    int n = rows.column[static_cast<size_t>(last)];
+    for (int d = 0; d < 3; ++d) n += free_index_[static_cast<size_t>(3 * v + d)] >= 0;
+    return n;
+  };
   A_.resize(num_free_, num_free_);
-  Eigen::VectorXi nnz_per_row = Eigen::VectorXi::Zero(num_free_);
-  for (int i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c) {
-      const int r = free_index_[static_cast<size_t>(3 * i + c)];
-      if (r < 0) continue;
-      int count = 0;
-      for (int j : adj[static_cast<size_t>(i)])
-        for (int d = 0; d < 3; ++d) count += free_index_[static_cast<size_t>(3 * j + d)] >= 0;
-      nnz_per_row(r) = count;
+  int* outer = A_.outerIndexPtr();
+  outer[0] = 0;
+  for (int K = 0; K < nb; ++K)
+    for (int r = first_row[static_cast<size_t>(K)]; r < first_row[static_cast<size_t>(K) + 1]; ++r) outer[r + 1] = outer[r] + row_length(K);
+  A_.resizeNonZeros(outer[num_free_]);
+  int* inner = A_.innerIndexPtr();
+  std::fill(A_.valuePtr(), A_.valuePtr() + A_.nonZeros(), 0.0);
+  parallel_for(nb, [&](int K) {
+    const int r0 = first_row[static_cast<size_t>(K)];
+    int* out = inner + outer[r0];
+    for (int k = rows.start[static_cast<size_t>(K)]; k < rows.start[static_cast<size_t>(K) + 1]; ++k) {
+      const int w = block_nodes_[static_cast<size_t>(rows.block[static_cast<size_t>(k)])];
+      for (int d = 0; d < 3; ++d)
+        if (const int col = free_index_[static_cast<size_t>(3 * w + d)]; col >= 0) *out++ = col;
     }
-  A_.reserve(nnz_per_row);
-  for (int i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c) {
-      const int r = free_index_[static_cast<size_t>(3 * i + c)];
-      if (r < 0) continue;
-      for (int j : adj[static_cast<size_t>(i)])
-        for (int d = 0; d < 3; ++d) {
-          const int col = free_index_[static_cast<size_t>(3 * j + d)];
-          if (col >= 0) A_.insert(r, col) = 0.0;
-        }
-    }
-  A_.makeCompressed();
+    for (int r = r0 + 1; r < first_row[static_cast<size_t>(K) + 1]; ++r) std::copy(inner + outer[r0], inner + outer[r0 + 1], inner + outer[r]);
+  });
 }
 
 int SparseSystem::value_index(int r, int col) const {
@@ -236,51 +334,52 @@ int SparseSystem::value_index(int r, int col) const {
 }
 
 // Where each element's entries go in the values (see block_scatter_, general_scatter_),
-// and each free DOF's diagonal entry.
-void SparseSystem::build_scatter() {
+// and each free DOF's diagonal entry. An element whose DOFs are all free finds each node
+// pair's block through the block rows (a node's three rows have the same columns, so one
+// lookup serves all three); one with a fixed DOF searches the pattern entry by entry.
+void SparseSystem::build_scatter(const detail::BlockRows& rows) {
   diag_.resize(static_cast<size_t>(num_free_));
-  for (int r = 0; r < num_free_; ++r) diag_[static_cast<size_t>(r)] = value_index(r, r);
-  block_scatter_.assign(tets_.size() * kBlockIndices, 0);
-  general_offset_.assign(tets_.size(), -1);
-  general_scatter_.clear();
-  for (size_t e = 0; e < tets_.size(); ++e) {
+  parallel_for_checked(num_free_, [&](int r) { diag_[static_cast<size_t>(r)] = value_index(r, r); });
+  const size_t ne = tets_.size();
+  block_scatter_.assign(ne * kBlockIndices, 0);
+  general_offset_.assign(ne, -1);
+  int general = 0;
+  for (size_t e = 0; e < ne; ++e) {
     bool all_free = true;
     for (int a = 0; a < 4; ++a)
       for (int c = 0; c < 3; ++c) all_free = all_free && free_index_[static_cast<size_t>(3 * tets_[e][a] + c)] >= 0;
-    if (all_free) {
-      // One search per node pair: a node's three rows have the same columns (the pattern
-      // holds whole node blocks), so rows 2 and 3 find the block at the same offset as row 1
-      // (at 250,000 tets, 96 searches per element took 0.4 s of the setup).
-      const int* outer = A_.outerIndexPtr();
-      const int* inner = A_.innerIndexPtr();
+    if (!all_free) {
+      general_offset_[e] = general;
+      general += 144;
+    }
+  }
+  general_scatter_.assign(static_cast<size_t>(general), -1);
+  const int* outer = A_.outerIndexPtr();
+  parallel_for_checked(static_cast<int>(ne), [&](int ei) {
+    const size_t e = static_cast<size_t>(ei);
+    const Tet& t = tets_[e];
+    if (general_offset_[e] < 0) {
       for (int a = 0; a < 4; ++a) {
-        const int r0 = free_index_[static_cast<size_t>(3 * tets_[e][a])];
+        const int r0 = free_index_[static_cast<size_t>(3 * t[a])];
+        const int K = rows.row_of_node[static_cast<size_t>(t[a])];
         for (int b = 0; b < 4; ++b) {
-          const int col = free_index_[static_cast<size_t>(3 * tets_[e][b])];
-          const int offset = value_index(r0, col) - outer[r0];
-          for (int i = 0; i < 3; ++i) {
-            const int first = outer[r0 + i] + offset;
-            if (first + 2 >= outer[r0 + i + 1] || inner[first] != col || inner[first + 2] != col + 2)
-              throw std::logic_error("sparse pattern: node block not contiguous");
-            block_scatter_[e * kBlockIndices + static_cast<size_t>((4 * a + b) * 3 + i)] = first;
-          }
+          const int offset = rows.column[static_cast<size_t>(rows.find(K, rows.row_of_node[static_cast<size_t>(t[b])]))];
+          for (int i = 0; i < 3; ++i) block_scatter_[e * kBlockIndices + static_cast<size_t>((4 * a + b) * 3 + i)] = outer[r0 + i] + offset;
         }
       }
-      continue;
+      return;
     }
-    general_offset_[e] = static_cast<int>(general_scatter_.size());
-    general_scatter_.resize(general_scatter_.size() + 144, -1);
     int* s = &general_scatter_[static_cast<size_t>(general_offset_[e])];
     for (int a = 0; a < 4; ++a)
       for (int c = 0; c < 3; ++c)
         for (int b = 0; b < 4; ++b)
           for (int d = 0; d < 3; ++d) {
-            const int r = free_index_[static_cast<size_t>(3 * tets_[e][a] + c)];
-            const int col = free_index_[static_cast<size_t>(3 * tets_[e][b] + d)];
+            const int r = free_index_[static_cast<size_t>(3 * t[a] + c)];
+            const int col = free_index_[static_cast<size_t>(3 * t[b] + d)];
             if (r < 0 || col < 0) continue;
             s[(3 * b + d) * 12 + 3 * a + c] = value_index(r, col);
           }
-  }
+  });
 }
 
 // Chunks of consecutive elements, coloured so that no two chunks of a colour share a
@@ -408,57 +507,70 @@ void SparseSystem::plan_zeroing(int n) {
   zero_begin_[static_cast<size_t>(num_chunks)] = static_cast<int>(zero_ranges_.size());
 }
 
-void SparseSystem::build_blocks(const std::vector<std::vector<int>>& adj) {
+void SparseSystem::build_blocks(const detail::BlockRows& rows) {
   // Only when every node is wholly free or wholly fixed: then node block I owns free DOFs
-  // 3I..3I+2 and a block is a whole 3 x 3 of the CSR matrix.
-  const int n = static_cast<int>(adj.size());
-  node_block_.assign(static_cast<size_t>(n), -1);
+  // 3I..3I+2 and a block is a whole 3 x 3 of the CSR matrix; block row I's neighbours are
+  // then rows.block of row I, three columns each.
+  node_block_.assign(rows.row_of_node.size(), -1);
   for (int v : block_nodes_)
     for (int c = 0; c < 3; ++c)
       if (free_index_[static_cast<size_t>(3 * v + c)] < 0) return;  // partly fixed: the CSR path
+  node_block_ = rows.row_of_node;
   const int nb = static_cast<int>(block_nodes_.size());
-  for (int I = 0; I < nb; ++I) node_block_[static_cast<size_t>(block_nodes_[static_cast<size_t>(I)])] = I;
+  // Row I's blocks: the diagonal, then its neighbours above it (those after I in its sorted
+  // row), so block (I, J >= I) is block_start_[I] + (index of J - index of I) in row I.
+  std::vector<int> self(static_cast<size_t>(nb));
   block_start_.assign(static_cast<size_t>(nb) + 1, 0);
-  block_col_.clear();
   for (int I = 0; I < nb; ++I) {
-    const int v = block_nodes_[static_cast<size_t>(I)];
-    block_start_[static_cast<size_t>(I)] = static_cast<int>(block_col_.size());
-    block_col_.push_back(I);  // the diagonal block first
-    std::vector<int> cols;
-    for (int w : adj[static_cast<size_t>(v)]) {
-      const int J = node_block_[static_cast<size_t>(w)];
-      if (J > I) cols.push_back(J);
-    }
-    std::sort(cols.begin(), cols.end());
-    block_col_.insert(block_col_.end(), cols.begin(), cols.end());
+    self[static_cast<size_t>(I)] = rows.find(I, I);
+    block_start_[static_cast<size_t>(I) + 1] =
+        block_start_[static_cast<size_t>(I)] + rows.start[static_cast<size_t>(I) + 1] - self[static_cast<size_t>(I)];
   }
-  block_start_[static_cast<size_t>(nb)] = static_cast<int>(block_col_.size());
+  block_col_.resize(static_cast<size_t>(block_start_.back()));
+  parallel_for(nb, [&](int I) {
+    std::copy(rows.block.begin() + self[static_cast<size_t>(I)], rows.block.begin() + rows.start[static_cast<size_t>(I) + 1],
+              block_col_.begin() + block_start_[static_cast<size_t>(I)]);
+  });
   block_values_.assign(9 * block_col_.size(), 0.0);
   auto block_of = [&](int I, int J) {  // J >= I
-    const auto first = block_col_.begin() + block_start_[static_cast<size_t>(I)];
-    const auto last = block_col_.begin() + block_start_[static_cast<size_t>(I) + 1];
-    const auto it = J == I ? first : std::lower_bound(first + 1, last, J);
-    if (it == last || *it != J) throw std::logic_error("block pattern lookup failed");
-    return static_cast<int>(it - block_col_.begin());
+    return block_start_[static_cast<size_t>(I)] + rows.find(I, J) - self[static_cast<size_t>(I)];
   };
-  element_blocks_.assign(tets_.size() * 10, -1);
-  for (size_t e = 0; e < tets_.size(); ++e)
-    for (int a = 0; a < 4; ++a)
-      for (int b = a; b < 4; ++b) {
-        const int I = node_block_[static_cast<size_t>(tets_[e][a])], J = node_block_[static_cast<size_t>(tets_[e][b])];
-        if (I < 0 || J < 0) continue;
-        element_blocks_[e * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
-            I <= J ? 2 * block_of(I, J) : 2 * block_of(J, I) + 1;
-      }
+  // Each CSR value's block entry: row 3I + i's columns are row I's neighbours J, three each.
   csr_from_block_.assign(static_cast<size_t>(A_.nonZeros()), 0);
   const int* outer = A_.outerIndexPtr();
-  const int* inner = A_.innerIndexPtr();
-  for (int r = 0; r < num_free_; ++r)
-    for (int p = outer[r]; p < outer[r + 1]; ++p) {
-      const int I = r / 3, J = inner[p] / 3, i = r % 3, j = inner[p] % 3;
-      csr_from_block_[static_cast<size_t>(p)] = I <= J ? 9 * block_of(I, J) + 3 * i + j : 9 * block_of(J, I) + 3 * j + i;
+  parallel_for_checked(nb, [&](int I) {
+    for (int k = rows.start[static_cast<size_t>(I)]; k < rows.start[static_cast<size_t>(I) + 1]; ++k) {
+      const int J = rows.block[static_cast<size_t>(k)];
+      const int column = rows.column[static_cast<size_t>(k)];
+      const bool upper = J >= I;
+      const int blk = upper ? block_start_[static_cast<size_t>(I)] + k - self[static_cast<size_t>(I)] : block_of(J, I);
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          csr_from_block_[static_cast<size_t>(outer[3 * I + i] + column + j)] = upper ? 9 * blk + 3 * i + j : 9 * blk + 3 * j + i;
     }
+  });
   block_ok_ = true;
+}
+
+// Each element's ten blocks in the block store, by loop position (build_blocks first).
+void SparseSystem::build_element_blocks(const detail::BlockRows& rows) {
+  element_blocks_.clear();
+  if (!block_ok_) return;
+  element_blocks_.assign(tets_.size() * 10, -1);
+  auto block_of = [&](int I, int J) {  // J >= I: the diagonal block first, then those above
+    const int self = rows.find(I, I);
+    return block_start_[static_cast<size_t>(I)] + rows.find(I, J) - self;
+  };
+  parallel_for_checked(static_cast<int>(tets_.size()), [&](int k) {
+    const size_t pos = static_cast<size_t>(k);
+    for (int a = 0; a < 4; ++a)
+      for (int b = a; b < 4; ++b) {
+        const int I = node_block_[static_cast<size_t>(tets_[pos][a])], J = node_block_[static_cast<size_t>(tets_[pos][b])];
+        if (I < 0 || J < 0) continue;
+        element_blocks_[pos * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
+            I <= J ? 2 * block_of(I, J) : 2 * block_of(J, I) + 1;
+      }
+  });
 }
 
 void SparseSystem::sync_matrix() {

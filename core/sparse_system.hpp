@@ -78,6 +78,26 @@ struct NaturalOrder {
   std::vector<int> value;      ///< Per non-zero of the CSR matrix (row-major, sorted columns).
 };
 
+namespace detail {
+
+/// The nodes sharing an element with each node (itself included), sorted, as the rows
+/// of a compressed graph: node v's at nodes[start[v] .. start[v + 1]).
+struct NodeGraph {
+  std::vector<int> start, nodes;
+};
+/// The constructor's view of the pattern by node blocks: for block row K (the K-th of
+/// block_nodes_), the blocks of its neighbours with a free DOF, sorted (itself included),
+/// at block[start[K] .. start[K + 1]), and where each one's columns start in the node's
+/// rows (column, same indices).
+struct BlockRows {
+  std::vector<int> row_of_node;  // K of each node, -1 for a node without a free DOF
+  std::vector<int> start, block, column;
+  /// Index of block J in row K (into block and column). @throws std::logic_error if absent.
+  int find(int K, int J) const;
+};
+
+}  // namespace detail
+
 class SparseSystem {
  public:
   /// Fewest elements per run for LoopSchedule::automatic to choose runs: below it the
@@ -218,13 +238,14 @@ class SparseSystem {
   mutable bool natural_done_ = false;
   std::vector<Tet> tets_;   // by element while the constructor orders them, then by loop position
   std::vector<int> order_;  // elements in chunk order (the mesh's, or Morton order of centroids)
-  /// The per-element arrays (tets_, the scatter indices) into loop order, once order_ is final.
+  /// tets_ into loop order, once order_ is final (the scatter indices are then built so).
   void store_in_loop_order();
   // The constructor's steps, in order (sparse_system.cpp).
-  void number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs,
-                        const std::vector<std::vector<int>>& adjacency, DofOrder order);
-  void build_pattern(const std::vector<std::vector<int>>& adjacency);
-  void build_scatter();
+  void number_free_dofs(int num_nodes, const std::vector<std::uint8_t>& fixed_dofs, const detail::NodeGraph& graph,
+                        DofOrder order);
+  detail::BlockRows block_rows(const detail::NodeGraph& graph) const;
+  void build_pattern(const detail::BlockRows& rows);
+  void build_scatter(const detail::BlockRows& rows);
   /// Chunk order: the mesh's element order, or Morton order when that needs fewer colours.
   void order_chunks(const TetMesh& mesh, std::vector<std::uint64_t>& morton);
   /// Runs of chunks instead (LoopSchedule::runs, or automatic on large meshes).
@@ -240,7 +261,8 @@ class SparseSystem {
   std::vector<std::pair<int, int>> zero_ranges_;
   std::vector<int> zero_begin_;
   // The block store (see has_blocks()).
-  void build_blocks(const std::vector<std::vector<int>>& adjacency);
+  void build_blocks(const detail::BlockRows& rows);
+  void build_element_blocks(const detail::BlockRows& rows);
   bool block_ok_ = false;
   bool blocks_current_ = false;
   std::vector<int> node_block_;                 // per node: its block row, or -1 (fixed)

@@ -171,13 +171,9 @@ void ServeOptions::validate() const {
 
 int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out) {
   options.validate();
-  RunDriver run(scene, Parameters::commanded, options.files);
-  if (!options.resume.empty()) {
-    run.resume(options.resume);
-    out << "fiberfem serve: resumed from " << options.resume.path << " at t = " << run.engine().time_s() << " s (step "
-        << run.engine().step_count() << ")\n";
-  }
-  if (options.start_paused) run.control().apply("pause", "{}");
+  // The endpoints first: the domain's discovery of them (a few hundred milliseconds on
+  // loopback) goes on while the engine is set up, so a waiting client has matched them
+  // by the time the first status and state go out.
   const std::string run_id = options.run_id.empty() ? default_run_id(scene.name) : options.run_id;
   std::unique_ptr<RunEndpoints> bus;
   try {
@@ -186,6 +182,13 @@ int serve(const io::Scene& scene, const ServeOptions& options, std::ostream& out
     out << "fiberfem serve: " << e.what() << "\n";
     return 1;
   }
+  RunDriver run(scene, Parameters::commanded, options.files);
+  if (!options.resume.empty()) {
+    run.resume(options.resume);
+    out << "fiberfem serve: resumed from " << options.resume.path << " at t = " << run.engine().time_s() << " s (step "
+        << run.engine().step_count() << ")\n";
+  }
+  if (options.start_paused) run.control().apply("pause", "{}");
   const auto start = Clock::now();
   const StopSignals stop_signals;  // until the last state and status are out
   ServeLoop loop(options, run, *bus, out);
