@@ -1,5 +1,7 @@
 #include "core/mesh.hpp"
 
+#include "core/parallel.hpp"
+
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -32,25 +34,25 @@ TetMesh::TetMesh(Positions rest_positions, std::vector<Tet> tets, std::vector<in
   num_regions_ = 0;
   volumes_.resize(tets_.size());
   for (size_t e = 0; e < tets_.size(); ++e) {
-    const std::string id = "mesh: element " + std::to_string(e);
+    const auto id = [e] { return "mesh: element " + std::to_string(e); };  // only for an error
     Tet& t = tets_[e];
     for (int a = 0; a < 4; ++a) {
       if (t[a] < 0 || t[a] >= n)
-        throw std::invalid_argument(id + " references node " + std::to_string(t[a]) +
+        throw std::invalid_argument(id() + " references node " + std::to_string(t[a]) +
                                     ", outside [0, " + std::to_string(n) + ")");
       for (int b = 0; b < a; ++b)
         if (t[a] == t[b])
-          throw std::invalid_argument(id + " uses node " + std::to_string(t[a]) + " twice");
+          throw std::invalid_argument(id() + " uses node " + std::to_string(t[a]) + " twice");
     }
     if (regions_[e] < 0)
-      throw std::invalid_argument(id + " has negative region id " + std::to_string(regions_[e]));
+      throw std::invalid_argument(id() + " has negative region id " + std::to_string(regions_[e]));
     num_regions_ = std::max(num_regions_, regions_[e] + 1);
     double v = signed_volume(rest_.col(t[0]), rest_.col(t[1]), rest_.col(t[2]), rest_.col(t[3]));
     double h = 0.0;
     for (int a = 0; a < 4; ++a)
       for (int b = a + 1; b < 4; ++b) h = std::max(h, (rest_.col(t[a]) - rest_.col(t[b])).norm());
     if (!(std::abs(v) > degenerate_tolerance * h * h * h))
-      throw std::invalid_argument(id + " is degenerate (volume " + std::to_string(v) +
+      throw std::invalid_argument(id() + " is degenerate (volume " + std::to_string(v) +
                                   " m^3, longest edge " + std::to_string(h) + " m)");
     if (v < 0) {
       std::swap(t[2], t[3]);
@@ -77,15 +79,28 @@ void TetMesh::build_boundary() {
       return s[2] != o.s[2] ? s[2] < o.s[2] : use < o.use;
     }
   };
-  std::vector<Face> all;
-  all.reserve(tets_.size() * 4);
+  // Faces bucketed by their smallest node (a counting sort, in element order), each
+  // bucket then sorted: the order of one sort of all of them (1 M faces at 250,000 tets),
+  // in a fraction of its time.
+  const size_t n = static_cast<size_t>(num_nodes());
+  std::vector<int> start(n + 1, 0);
+  std::vector<Face> made(tets_.size() * 4);
   for (size_t e = 0; e < tets_.size(); ++e)
     for (int f = 0; f < 4; ++f) {
       Face k{{tets_[e][kFace[f][0]], tets_[e][kFace[f][1]], tets_[e][kFace[f][2]]}, static_cast<int>(e * 4 + f)};
       std::sort(k.s.begin(), k.s.end());
-      all.push_back(k);
+      made[e * 4 + static_cast<size_t>(f)] = k;
+      ++start[static_cast<size_t>(k.s[0]) + 1];
     }
-  std::sort(all.begin(), all.end());
+  for (size_t v = 0; v < n; ++v) start[v + 1] += start[v];
+  std::vector<Face> all(made.size());
+  {
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (const Face& k : made) all[static_cast<size_t>(fill[static_cast<size_t>(k.s[0])]++)] = k;
+  }
+  parallel_for(num_nodes(), [&](int v) {
+    std::sort(all.begin() + start[static_cast<size_t>(v)], all.begin() + start[static_cast<size_t>(v) + 1]);
+  });
   std::vector<std::pair<int, int>> faces;  // (element, face) of boundary faces
   const Face* over = nullptr;              // the face whose third use comes first in element order
   for (size_t a = 0, b = 0; a < all.size(); a = b) {

@@ -116,7 +116,6 @@ SparseSystem::SparseSystem(const TetMesh& mesh, const std::vector<std::uint8_t>&
   store_in_loop_order();
   // Per loop position from here, the elements' nodes close together in memory.
   build_scatter(rows);
-  build_element_blocks(rows);
 }
 
 void SparseSystem::store_in_loop_order() {
@@ -228,6 +227,7 @@ detail::BlockRows SparseSystem::block_rows(const detail::NodeGraph& graph) const
   }
   rows.block.resize(static_cast<size_t>(rows.start.back()));
   rows.column.resize(rows.block.size());
+  rows.self.resize(static_cast<size_t>(nb));
   const auto free_count = [&](int J) {
     const int v = block_nodes_[static_cast<size_t>(J)];
     int c = 0;
@@ -241,6 +241,8 @@ detail::BlockRows SparseSystem::block_rows(const detail::NodeGraph& graph) const
       if (const int J = rows.row_of_node[static_cast<size_t>(*it)]; J >= 0) *out++ = J;
     const int begin = rows.start[static_cast<size_t>(K)], end = rows.start[static_cast<size_t>(K) + 1];
     std::sort(rows.block.begin() + begin, rows.block.begin() + end);
+    rows.self[static_cast<size_t>(K)] =
+        static_cast<int>(std::lower_bound(rows.block.begin() + begin, rows.block.begin() + end, K) - rows.block.begin());
     int column = 0;
     for (int k = begin; k < end; ++k) {
       rows.column[static_cast<size_t>(k)] = column;
@@ -333,16 +335,19 @@ int SparseSystem::value_index(int r, int col) const {
   return static_cast<int>(p - inner);
 }
 
-// Where each element's entries go in the values (see block_scatter_, general_scatter_),
-// and each free DOF's diagonal entry. An element whose DOFs are all free finds each node
-// pair's block through the block rows (a node's three rows have the same columns, so one
-// lookup serves all three); one with a fixed DOF searches the pattern entry by entry.
+// Where each element's entries go, by loop position: in the values (block_scatter_,
+// general_scatter_) and in the block store (element_blocks_, build_blocks first), and each
+// free DOF's diagonal entry. An element whose DOFs are all free finds each node pair's block
+// through the block rows (one search in a node's neighbours; a node's three rows have the
+// same columns, and pair (b, a) gives the transposed block of (a, b)); one with a fixed DOF
+// searches the pattern entry by entry.
 void SparseSystem::build_scatter(const detail::BlockRows& rows) {
   diag_.resize(static_cast<size_t>(num_free_));
   parallel_for_checked(num_free_, [&](int r) { diag_[static_cast<size_t>(r)] = value_index(r, r); });
   const size_t ne = tets_.size();
   block_scatter_.assign(ne * kBlockIndices, 0);
   general_offset_.assign(ne, -1);
+  element_blocks_.assign(block_ok_ ? ne * 10 : 0, -1);
   int general = 0;
   for (size_t e = 0; e < ne; ++e) {
     bool all_free = true;
@@ -355,18 +360,31 @@ void SparseSystem::build_scatter(const detail::BlockRows& rows) {
   }
   general_scatter_.assign(static_cast<size_t>(general), -1);
   const int* outer = A_.outerIndexPtr();
+  // Block (I, J) for J >= I from J's index in row I: the diagonal block first, then those above.
+  const auto block = [&](int I, int index_of_J_in_row_I) {
+    return block_start_[static_cast<size_t>(I)] + index_of_J_in_row_I - rows.self[static_cast<size_t>(I)];
+  };
   parallel_for_checked(static_cast<int>(ne), [&](int ei) {
     const size_t e = static_cast<size_t>(ei);
     const Tet& t = tets_[e];
+    int K[4];
+    for (int a = 0; a < 4; ++a) K[a] = rows.row_of_node[static_cast<size_t>(t[a])];
     if (general_offset_[e] < 0) {
+      int index[4][4];  // of node b's block in node a's row
+      for (int a = 0; a < 4; ++a)
+        for (int b = 0; b < 4; ++b) index[a][b] = a == b ? rows.self[static_cast<size_t>(K[a])] : rows.find(K[a], K[b]);
       for (int a = 0; a < 4; ++a) {
         const int r0 = free_index_[static_cast<size_t>(3 * t[a])];
-        const int K = rows.row_of_node[static_cast<size_t>(t[a])];
         for (int b = 0; b < 4; ++b) {
-          const int offset = rows.column[static_cast<size_t>(rows.find(K, rows.row_of_node[static_cast<size_t>(t[b])]))];
+          const int offset = rows.column[static_cast<size_t>(index[a][b])];
           for (int i = 0; i < 3; ++i) block_scatter_[e * kBlockIndices + static_cast<size_t>((4 * a + b) * 3 + i)] = outer[r0 + i] + offset;
         }
       }
+      if (block_ok_)
+        for (int a = 0; a < 4; ++a)
+          for (int b = a; b < 4; ++b)
+            element_blocks_[e * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
+                K[a] <= K[b] ? 2 * block(K[a], index[a][b]) : 2 * block(K[b], index[b][a]) + 1;
       return;
     }
     int* s = &general_scatter_[static_cast<size_t>(general_offset_[e])];
@@ -379,6 +397,14 @@ void SparseSystem::build_scatter(const detail::BlockRows& rows) {
             if (r < 0 || col < 0) continue;
             s[(3 * b + d) * 12 + 3 * a + c] = value_index(r, col);
           }
+    if (block_ok_)  // pairs of free nodes (a node is wholly free or wholly fixed here)
+      for (int a = 0; a < 4; ++a)
+        for (int b = a; b < 4; ++b) {
+          if (K[a] < 0 || K[b] < 0) continue;
+          const int I = std::min(K[a], K[b]), J = std::max(K[a], K[b]);
+          element_blocks_[e * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
+              2 * block(I, rows.find(I, J)) + (K[a] <= K[b] ? 0 : 1);
+        }
   });
 }
 
@@ -519,10 +545,9 @@ void SparseSystem::build_blocks(const detail::BlockRows& rows) {
   const int nb = static_cast<int>(block_nodes_.size());
   // Row I's blocks: the diagonal, then its neighbours above it (those after I in its sorted
   // row), so block (I, J >= I) is block_start_[I] + (index of J - index of I) in row I.
-  std::vector<int> self(static_cast<size_t>(nb));
+  const std::vector<int>& self = rows.self;
   block_start_.assign(static_cast<size_t>(nb) + 1, 0);
   for (int I = 0; I < nb; ++I) {
-    self[static_cast<size_t>(I)] = rows.find(I, I);
     block_start_[static_cast<size_t>(I) + 1] =
         block_start_[static_cast<size_t>(I)] + rows.start[static_cast<size_t>(I) + 1] - self[static_cast<size_t>(I)];
   }
@@ -550,27 +575,6 @@ void SparseSystem::build_blocks(const detail::BlockRows& rows) {
     }
   });
   block_ok_ = true;
-}
-
-// Each element's ten blocks in the block store, by loop position (build_blocks first).
-void SparseSystem::build_element_blocks(const detail::BlockRows& rows) {
-  element_blocks_.clear();
-  if (!block_ok_) return;
-  element_blocks_.assign(tets_.size() * 10, -1);
-  auto block_of = [&](int I, int J) {  // J >= I: the diagonal block first, then those above
-    const int self = rows.find(I, I);
-    return block_start_[static_cast<size_t>(I)] + rows.find(I, J) - self;
-  };
-  parallel_for_checked(static_cast<int>(tets_.size()), [&](int k) {
-    const size_t pos = static_cast<size_t>(k);
-    for (int a = 0; a < 4; ++a)
-      for (int b = a; b < 4; ++b) {
-        const int I = node_block_[static_cast<size_t>(tets_[pos][a])], J = node_block_[static_cast<size_t>(tets_[pos][b])];
-        if (I < 0 || J < 0) continue;
-        element_blocks_[pos * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
-            I <= J ? 2 * block_of(I, J) : 2 * block_of(J, I) + 1;
-      }
-  });
 }
 
 void SparseSystem::sync_matrix() {

@@ -92,6 +92,7 @@ struct NodeGraph {
 struct BlockRows {
   std::vector<int> row_of_node;  // K of each node, -1 for a node without a free DOF
   std::vector<int> start, block, column;
+  std::vector<int> self;  // per row K: the index of K itself in it
   /// Index of block J in row K (into block and column). @throws std::logic_error if absent.
   int find(int K, int J) const;
 };
@@ -262,7 +263,6 @@ class SparseSystem {
   std::vector<int> zero_begin_;
   // The block store (see has_blocks()).
   void build_blocks(const detail::BlockRows& rows);
-  void build_element_blocks(const detail::BlockRows& rows);
   bool block_ok_ = false;
   bool blocks_current_ = false;
   std::vector<int> node_block_;                 // per node: its block row, or -1 (fixed)
