@@ -46,6 +46,9 @@ class ServeLoop {
   std::string run(const StopSignals& stop_signals) {
     if (o_.archive.enabled && has_archive()) recording_.start_series(o_.archive);
     status_.publish(bus_, run_, "starting");
+    // The starting state (the rest shape, or the resumed one) goes out before the first
+    // step, which can take most of a second at 250,000 tets.
+    publish_due(Clock::now());
     run_.control().set_recording_handler(
         [this](const std::string& kind, const std::string& args) { return recording_.command(kind, args); });
     for (;;) {
