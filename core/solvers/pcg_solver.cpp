@@ -81,17 +81,20 @@ SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd&
   const bool start = lagged_.factor_beside(A, *slot);
   // The copy to factorise, and block Jacobi, read the CSR values.
   if ((start || slot->beside) && sync) sync->sync_matrix();
-  if (start) {
-    lagged_.start_beside(A, *slot);
-    // The rest of this step leaves its core to the new thread, as the next steps will
-    // (Simulator::step counts threads_beside()): three threads on two cores made this
-    // step's block products wait for a descheduled one (1.5 s at 250,000 tets).
-    omp_set_num_threads(std::max(1, omp_get_max_threads() - 1));
-  }
   int fallback = 0;  // iterations of block Jacobi that fell short
-  if (slot->beside) {
+  if (start || slot->beside) {
     first_guess_ = x;
     const SolveStats cg = run(jacobi_pre_, A, b, x, Ax0);
+    if (start) {
+      // The factorisation of this step's matrix starts after its solve, which had every
+      // thread: the first step of a large run then takes half the time (the first state
+      // comes sooner; the factor takes over after the same count of iterations). The rest
+      // of this step leaves its core to the new thread, as the next steps will
+      // (Simulator::step counts threads_beside()): three threads on two cores made block
+      // products wait for a descheduled one (1.5 s at 250,000 tets).
+      lagged_.start_beside(A, *slot);
+      omp_set_num_threads(std::max(1, omp_get_max_threads() - 1));
+    }
     LaggedFactors::note_fallback(*slot, cg.iterations, !cg.ok);
     if (cg.ok) return cg;
     x = first_guess_;  // the factor takes over now, from the same guess
