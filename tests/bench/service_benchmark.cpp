@@ -10,7 +10,8 @@
 //   first-frames  a large scene's start: from spawning `fiberfem serve --fast` to the first
 //            state, to the first stepped state (t > 0), and to steps 10 and 60, with the
 //            first factorisation made beside the steps and waited for, alternated
-//            (--scene FILE, repeatable; --repeat N runs of each);
+//            (--scene FILE, repeatable; --repeat N runs of each; --against OLD_FIBERFEM
+//            runs each case with another binary too, alternated);
 //   security the cost of DDS Security (docs/security.md): the heart's frames, the command
 //            latencies and the state throughput with the plain profile (CYCLONEDDS_URI)
 //            and with the secure profiles of --secure-dir (scripts/make_security.sh), in
@@ -107,10 +108,10 @@ FramesResult frames(const std::string& label, std::vector<std::string> serve_arg
 
 // Seconds from spawning the service of `scene` (with solver.first_factorisation=`first`)
 // to its first state, its first stepped state and its states of steps 10 and 60.
-std::array<double, 4> first_frames(const std::string& scene, const std::string& first) {
+std::array<double, 4> first_frames(const std::string& scene, const std::string& first, const std::string& binary) {
   const std::string run = "bench-first-" + std::to_string(getpid());
   const auto t0 = Clock::now();
-  BackgroundProcess service({FIBERFEM_BIN, "serve", scene, "--run-id", run, "--fast", "--publish-hz", "1000", "--status-hz", "1",
+  BackgroundProcess service({binary, "serve", scene, "--run-id", run, "--fast", "--publish-hz", "1000", "--status-hz", "1",
                              "--set", "solver.first_factorisation=" + first},
                             "/tmp/bench-first-frames.log", service_env());
   use_profile(profiles.client);
@@ -138,19 +139,25 @@ std::array<double, 4> first_frames(const std::string& scene, const std::string& 
   return at;
 }
 
-void first_frames_table(const std::vector<std::string>& scenes, int repeat) {
-  std::printf("| scene | first factorisation | first state s | first step s | step 10 s | step 60 s |\n|---|---|---|---|---|---|\n");
+// With `against` (another fiberfem binary, e.g. an older build): each case run with both,
+// alternated, the rows labelled by binary.
+void first_frames_table(const std::vector<std::string>& scenes, int repeat, const std::string& against) {
+  std::vector<std::pair<std::string, std::string>> binaries = {{"this", FIBERFEM_BIN}};
+  if (!against.empty()) binaries.insert(binaries.begin(), {"against", against});
+  std::printf("| scene | binary | first factorisation | first state s | first step s | step 10 s | step 60 s |\n|---|---|---|---|---|---|---|\n");
   for (const std::string& scene : scenes) {
-    std::array<std::vector<double>, 4> by[2];
+    const size_t cases = 2 * binaries.size();
+    std::vector<std::array<std::vector<double>, 4>> by(cases);
     for (int r = 0; r < repeat; ++r)
-      for (int m = 0; m < 2; ++m) {
-        const int mode = (r + m) % 2;  // alternated
-        const auto at = first_frames(scene, mode ? "beside" : "wait");
-        for (size_t k = 0; k < 4; ++k) by[mode][k].push_back(at[k]);
+      for (size_t c = 0; c < cases; ++c) {
+        const size_t k = (static_cast<size_t>(r) + c) % cases;  // alternated
+        const auto at = first_frames(scene, k % 2 ? "beside" : "wait", binaries[k / 2].second);
+        for (size_t m = 0; m < 4; ++m) by[k][m].push_back(at[m]);
       }
-    for (int mode = 0; mode < 2; ++mode)
-      std::printf("| %s | %s | %.2f | %.2f | %.2f | %.2f |\n", std::filesystem::path(scene).filename().c_str(), mode ? "beside" : "wait",
-                  percentile(by[mode][0], 0.5), percentile(by[mode][1], 0.5), percentile(by[mode][2], 0.5), percentile(by[mode][3], 0.5));
+    for (size_t k = 0; k < cases; ++k)
+      std::printf("| %s | %s | %s | %.2f | %.2f | %.2f | %.2f |\n", std::filesystem::path(scene).filename().c_str(),
+                  binaries[k / 2].first.c_str(), k % 2 ? "beside" : "wait", percentile(by[k][0], 0.5), percentile(by[k][1], 0.5),
+                  percentile(by[k][2], 0.5), percentile(by[k][3], 0.5));
     std::fflush(stdout);
   }
 }
@@ -341,6 +348,9 @@ int main(int argc, char** argv) {
   app.add_option("--scene", scenes, "first-frames: a scene file (repeatable)")->check(CLI::ExistingFile);
   int repeat = 3;
   app.add_option("--repeat", repeat, "first-frames: runs of each case (medians reported)")->check(CLI::Range(1, 100));
+  std::string against;
+  app.add_option("--against", against, "first-frames: another fiberfem binary to run each case with too, alternated")
+      ->check(CLI::ExistingFile);
   app.add_option("--secure-dir", secure_dir, "security: the output directory of scripts/make_security.sh")->check(CLI::ExistingDirectory);
   app.add_option("--seconds", seconds, "Measuring time per case, s");
   app.add_option("--commands", commands, "Commands for the latency");
@@ -357,7 +367,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (what == "first-frames") {
-    first_frames_table(scenes, repeat);
+    first_frames_table(scenes, repeat, against);
     return 0;
   }
   if (what == "frames" || what == "all") {
