@@ -39,8 +39,9 @@ CorotatedLinearModel::CorotatedLinearModel(const Model& model, const ElementCach
   for (int n = 0; n < nn; ++n) node_elem_start_[static_cast<size_t>(n) + 1] += node_elem_start_[static_cast<size_t>(n)];
   node_elems_.resize(static_cast<size_t>(node_elem_start_.back()));
   std::vector<int> fill(node_elem_start_.begin(), node_elem_start_.end() - 1);
-  for (int e = 0; e < ne; ++e)
-    for (int n : mesh_.tets()[static_cast<size_t>(e)]) node_elems_[static_cast<size_t>(fill[static_cast<size_t>(n)]++)] = e;
+  for (int e = 0; e < ne; ++e)  // in element order (the sums' order), holding loop positions
+    for (int n : mesh_.tets()[static_cast<size_t>(e)])
+      node_elems_[static_cast<size_t>(fill[static_cast<size_t>(n)]++)] = position_[static_cast<size_t>(e)];
 }
 
 // Ds - Dm of the element at loop position k at positions x (its edges' displacements), m.
@@ -62,24 +63,24 @@ Mat3 CorotatedLinearModel::element_gradient(const Eigen::VectorXd& x, size_t k) 
   return F;
 }
 
-// Rotations of elements elems[0..n-1] (n <= 4) from their F into st.R (and the warm-start
-// st.q); returns how many are inverted (det F <= 0).
-int CorotatedLinearModel::rotate_elements(const ElementPass& pass, SimulatorState& st, const int* elems, int n,
-                                          const Mat3* F) {
+// Rotations of the elements at loop positions first .. first + n - 1 (n <= 4) from their
+// F into st.R (and the warm-start st.q); returns how many are inverted (det F <= 0).
+int CorotatedLinearModel::rotate_elements(const ElementPass& pass, SimulatorState& st, int first, int n, const Mat3* F) {
   int inverted = 0;
   for (int l = 0; l < n; ++l) inverted += F[l].determinant() <= 0 ? 1 : 0;
+  const size_t k0 = static_cast<size_t>(first);
   if (!pass.corotation) {
-    for (int l = 0; l < n; ++l) st.R[static_cast<size_t>(elems[l])] = Mat3::Identity();
+    for (int l = 0; l < n; ++l) st.R[k0 + static_cast<size_t>(l)] = Mat3::Identity();
   } else if (pass.rotation == RotationMethod::polar) {
     Eigen::Quaterniond* q[4];
     Mat3* R[4];
     for (int l = 0; l < n; ++l) {
-      q[l] = &st.q[static_cast<size_t>(elems[l])];
-      R[l] = &st.R[static_cast<size_t>(elems[l])];
+      q[l] = &st.q[k0 + static_cast<size_t>(l)];
+      R[l] = &st.R[k0 + static_cast<size_t>(l)];
     }
     rotation_polar_batch(F, q, R, n, pass.polar_tolerance_rad);
   } else {
-    for (int l = 0; l < n; ++l) st.R[static_cast<size_t>(elems[l])] = rotation_svd(F[l]);
+    for (int l = 0; l < n; ++l) st.R[k0 + static_cast<size_t>(l)] = rotation_svd(F[l]);
   }
   return inverted;
 }
@@ -113,14 +114,10 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
       [&](const int* elems, int n, ElementBatch& batch) {
         ChunkAcc& my = acc[static_cast<size_t>(batch.chunk)];
         // Lanes past n repeat the last element (computed, never scattered). The model's
-        // per-element data is read at the loop position (in sequence), the state's
-        // rotations at the element.
+        // per-element data and the state's rotations are read at the loop position (in
+        // sequence), the active tension at the element.
         size_t lane_pos[W];
-        int lane_elem[W];
-        for (int l = 0; l < W; ++l) {
-          lane_pos[l] = static_cast<size_t>(batch.first + std::min(l, n - 1));
-          lane_elem[l] = elems[std::min(l, n - 1)];
-        }
+        for (int l = 0; l < W; ++l) lane_pos[l] = static_cast<size_t>(batch.first + std::min(l, n - 1));
         Mat3 D[W], F[W];
         for (int l = 0; l < W; ++l) {
           D[l] = element_edges(x, lane_pos[l]);
@@ -129,10 +126,10 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
             F[l].diagonal().array() += 1.0;
           }
         }
-        if (need_rotations) my.inverted += rotate_elements(pass, st, elems, n, F);
+        if (need_rotations) my.inverted += rotate_elements(pass, st, batch.first, n, F);
         Lanes kv[5], cl, Rl[9], Dil[9], Dl[9], fl[3];
         for (int l = 0; l < W; ++l) {
-          const size_t i = static_cast<size_t>(lane_elem[l]), k = lane_pos[l];
+          const size_t k = lane_pos[l];
           const SpencerElement& el = elements_[k];
           const SpencerConstants& law = region_law_[static_cast<size_t>(region_[k])];
           kv[0][l] = el.volume * law.lambda;
@@ -141,7 +138,7 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
           kv[3][l] = el.volume * law.gamma;
           kv[4][l] = el.volume * law.beta;
           cl[l] = h * beta_[k] + h * h;
-          const Mat3& R = st.R[i];
+          const Mat3& R = st.R[k];
           for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c) {
               Rl[3 * r + c][l] = R(r, c);
@@ -165,7 +162,7 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
             const size_t i = static_cast<size_t>(elems[l]), k = lane_pos[l];
             const SpencerElement& el = elements_[k];
             Vec12& fe = batch.force[l];
-            const Vec3 dir = rest_frame_active ? el.fiber : Vec3(st.R[i] * el.fiber);
+            const Vec3 dir = rest_frame_active ? el.fiber : Vec3(st.R[k] * el.fiber);
             const Vec3 s123 = el.Dm_inv * el.fiber;  // f . g_a, a = 1..3
             const double sa[4] = {-(s123(0) + s123(1) + s123(2)), s123(0), s123(1), s123(2)};
             const double tv = st.active_tension_pa[i] * el.volume;
@@ -215,11 +212,11 @@ int CorotatedLinearModel::count_inverted(const Eigen::VectorXd& x) const {
 void CorotatedLinearModel::seed_rotations(SimulatorState& st, bool corotation) const {
   // Exact, by SVD: the warm-started polar iteration starts from these.
   const int ne = mesh_.num_elements();
-  parallel_for(ne, [&](int e) {
-    const size_t i = static_cast<size_t>(e);
-    const Mat3 F = element_gradient(st.x, static_cast<size_t>(position_[i]));
-    st.R[i] = corotation ? rotation_svd(F) : Mat3::Identity();
-    st.q[i] = Eigen::Quaterniond(st.R[i]);
+  parallel_for(ne, [&](int kk) {
+    const size_t k = static_cast<size_t>(kk);
+    const Mat3 F = element_gradient(st.x, k);
+    st.R[k] = corotation ? rotation_svd(F) : Mat3::Identity();
+    st.q[k] = Eigen::Quaterniond(st.R[k]);
   });
 }
 

@@ -44,7 +44,7 @@ class CorotatedLinearModel final : public ElementModel {
   /// Ds - Dm and F of the element at loop position k.
   Mat3 element_edges(const Eigen::VectorXd& x, size_t k) const;
   Mat3 element_gradient(const Eigen::VectorXd& x, size_t k) const;
-  static int rotate_elements(const ElementPass& pass, SimulatorState& st, const int* elems, int n, const Mat3* F);
+  static int rotate_elements(const ElementPass& pass, SimulatorState& st, int first, int n, const Mat3* F);
 
   const TetMesh& mesh_;
   // Per element, stored by loop position (position_[e] of element e, order_[k] at k).
@@ -55,7 +55,7 @@ class CorotatedLinearModel final : public ElementModel {
   std::vector<double> beta_;                  // stiffness damping, s
   std::vector<SpencerConstants> region_law_;  // per region
   // Node blocks of the free DOFs (for the warp preconditioner): node of each block, and
-  // the elements around each node (CSR).
+  // the elements around each node (CSR, by loop position, in element order).
   std::vector<int> block_node_;
   std::vector<int> node_elem_start_, node_elems_;
   std::vector<ChunkAcc> acc_;  // per chunk of the pass (sized once)

@@ -168,8 +168,6 @@ class Simulator {
   const SparseSystem& system() const { return sys_; }
   /// The linear solver (its factor_info() for reports and benchmarks).
   const LinearSolver& linear_solver() const { return *solver_; }
-  /// Rotation of each element at the start of the last step.
-  const std::vector<Mat3>& rotations() const { return st_.R; }
   /// The thread count the engine has settled on (settings().threads when that is set).
   int threads() const { return settings_.threads > 0 ? settings_.threads : governor_.settled(); }
 

@@ -9,11 +9,11 @@ namespace fiberfem::core {
 
 namespace {
 
-// Checkpoints keep the free-DOF data in the mesh's node order (DofOrder::nodes), whatever
-// numbering the engine uses, so that a checkpoint does not depend on it: `to_natural`
-// renumbers this system's items (free DOFs, node blocks, matrix non-zeros) to that order,
-// and back when it is false. Arrays of another size are left as they are (restore's checks
-// name them).
+// Checkpoints keep the free-DOF data in the mesh's node order (DofOrder::nodes) and the
+// per-element data by element, whatever numbering and loop order the engine uses, so that a
+// checkpoint does not depend on them: `to_natural` renumbers this system's items (free DOFs,
+// node blocks, matrix non-zeros, loop positions) to those orders, and back when it is false.
+// Arrays of another size are left as they are (restore's checks name them).
 template <class V>
 void renumber(V& a, const std::vector<int>& map, int per_item, bool to_natural) {
   if (static_cast<size_t>(a.size()) != map.size() * static_cast<size_t>(per_item) || map.empty()) return;
@@ -31,7 +31,12 @@ void renumber(V& a, const std::vector<int>& map, int per_item, bool to_natural) 
   a = std::move(out);
 }
 
-void renumber_checkpoint(SimulatorCheckpoint& c, const NaturalOrder& o, bool to_natural) {
+// Per-element rotations: the engine keeps them by the element loop's position
+// (`element_order`: the element at each position), checkpoints by element.
+void renumber_checkpoint(SimulatorCheckpoint& c, const NaturalOrder& o, const std::vector<int>& element_order,
+                         bool to_natural) {
+  renumber(c.q, element_order, 1, to_natural);
+  renumber(c.R, element_order, 1, to_natural);
   if (o.identity) return;
   renumber(c.vfree, o.free, 1, to_natural);
   renumber(c.vfree_prev, o.free, 1, to_natural);
@@ -56,13 +61,13 @@ SimulatorCheckpoint Simulator::checkpoint() const {
   c.num_nodes = model_.mesh.num_nodes();
   c.num_elements = model_.mesh.num_elements();
   c.solver = solver_->save_state();
-  renumber_checkpoint(c, sys_.natural_order(), /*to_natural=*/true);
+  renumber_checkpoint(c, sys_.natural_order(), sys_.element_order(), /*to_natural=*/true);
   return c;
 }
 
 void Simulator::restore(const SimulatorCheckpoint& saved) {
   SimulatorCheckpoint c = saved;
-  renumber_checkpoint(c, sys_.natural_order(), /*to_natural=*/false);
+  renumber_checkpoint(c, sys_.natural_order(), sys_.element_order(), /*to_natural=*/false);
   const int nn = model_.mesh.num_nodes(), ne = model_.mesh.num_elements();
   const auto fail = [](const std::string& what) { throw std::invalid_argument("restore: " + what); };
   if (c.num_nodes != nn || c.num_elements != ne)

@@ -23,8 +23,10 @@ struct SimulatorState {
   Eigen::VectorXd vfree;             ///< Last solution over the free DOFs, m/s.
   Eigen::VectorXd vfree_prev;        ///< The one before (warm-start extrapolation), m/s.
   double last_h_s = -1;              ///< Step size of the last solve, s (-1: none yet).
-  std::vector<Eigen::Quaterniond> q; ///< Warm-start polar rotation per element.
-  std::vector<Mat3> R;               ///< Rotation per element.
+  /// Warm-start polar rotation per element, by the element loop's position
+  /// (SparseSystem::element_order(); checkpoints keep them by element).
+  std::vector<Eigen::Quaterniond> q;
+  std::vector<Mat3> R;               ///< Rotation per element, by loop position as q.
   bool rotations_current = false;    ///< R belongs to x (computed by the last step's checks).
   int inverted_current = 0;          ///< Inverted elements counted with R.
   std::vector<Eigen::Quaterniond> block_q;  ///< Warm-start rotation per free node block.
