@@ -1,7 +1,5 @@
 #include "core/mesh.hpp"
 
-#include "core/parallel.hpp"
-
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -98,9 +96,8 @@ void TetMesh::build_boundary() {
     std::vector<int> fill(start.begin(), start.end() - 1);
     for (const Face& k : made) all[static_cast<size_t>(fill[static_cast<size_t>(k.s[0])]++)] = k;
   }
-  parallel_for(num_nodes(), [&](int v) {
-    std::sort(all.begin() + start[static_cast<size_t>(v)], all.begin() + start[static_cast<size_t>(v) + 1]);
-  });
+  // (On this thread: a mesh is read before a run's thread count is known.)
+  for (size_t v = 0; v < n; ++v) std::sort(all.begin() + start[v], all.begin() + start[v + 1]);
   std::vector<std::pair<int, int>> faces;  // (element, face) of boundary faces
   const Face* over = nullptr;              // the face whose third use comes first in element order
   for (size_t a = 0, b = 0; a < all.size(); a = b) {

@@ -37,15 +37,29 @@ void SimulatorSettings::validate() const {
   if (threads < 0) throw std::invalid_argument("simulator: threads must be >= 0, got " + std::to_string(threads));
 }
 
+namespace {
+
+// The governor's ceiling: the count OpenMP gave this process (OMP_NUM_THREADS, or every
+// core), taken once, before any simulator here set its own.
+int process_threads() {
+  static const int n = std::max(1, omp_get_max_threads());
+  return n;
+}
+
+// A fixed thread count applies from the set-up on (its loops start no more threads).
+const SimulatorSettings& with_threads_applied(const SimulatorSettings& s) {
+  process_threads();
+  if (s.threads > 0) omp_set_num_threads(s.threads);
+  return s;
+}
+
+}  // namespace
+
 Simulator::Simulator(Model model, SimulatorSettings settings)
     : model_((model.validate(), std::move(model))),
-      settings_((settings.validate(), settings)),
+      settings_((settings.validate(), with_threads_applied(settings))),
       sys_(model_.mesh, model_.fixed_dofs, 32, LoopSchedule::automatic, settings_.dof_order) {
-  // The governor's ceiling: the count OpenMP gave this process (OMP_NUM_THREADS, or every
-  // core), taken once, before any simulator here set its own.
-  static const int process_threads = std::max(1, omp_get_max_threads());
-  governor_ = ThreadGovernor(process_threads);
-  if (settings_.threads > 0) omp_set_num_threads(settings_.threads);
+  governor_ = ThreadGovernor(process_threads());
   caches_.build(model_, /*with_stiffness=*/false);
   const int ne = model_.mesh.num_elements();
   // The one element family of the engine; another (core/element_model.hpp) would be
