@@ -360,10 +360,6 @@ void SparseSystem::build_scatter(const detail::BlockRows& rows) {
   }
   general_scatter_.assign(static_cast<size_t>(general), -1);
   const int* outer = A_.outerIndexPtr();
-  // Block (I, J) for J >= I from J's index in row I: the diagonal block first, then those above.
-  const auto block = [&](int I, int index_of_J_in_row_I) {
-    return block_start_[static_cast<size_t>(I)] + index_of_J_in_row_I - rows.self[static_cast<size_t>(I)];
-  };
   parallel_for_checked(static_cast<int>(ne), [&](int ei) {
     const size_t e = static_cast<size_t>(ei);
     const Tet& t = tets_[e];
@@ -384,7 +380,7 @@ void SparseSystem::build_scatter(const detail::BlockRows& rows) {
         for (int a = 0; a < 4; ++a)
           for (int b = a; b < 4; ++b)
             element_blocks_[e * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
-                K[a] <= K[b] ? 2 * block(K[a], index[a][b]) : 2 * block(K[b], index[b][a]) + 1;
+                K[a] <= K[b] ? 2 * upper_block(rows, K[a], index[a][b]) : 2 * upper_block(rows, K[b], index[b][a]) + 1;
       return;
     }
     int* s = &general_scatter_[static_cast<size_t>(general_offset_[e])];
@@ -403,7 +399,7 @@ void SparseSystem::build_scatter(const detail::BlockRows& rows) {
           if (K[a] < 0 || K[b] < 0) continue;
           const int I = std::min(K[a], K[b]), J = std::max(K[a], K[b]);
           element_blocks_[e * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
-              2 * block(I, rows.find(I, J)) + (K[a] <= K[b] ? 0 : 1);
+              2 * upper_block(rows, I, rows.find(I, J)) + (K[a] <= K[b] ? 0 : 1);
         }
   });
 }
@@ -557,9 +553,6 @@ void SparseSystem::build_blocks(const detail::BlockRows& rows) {
               block_col_.begin() + block_start_[static_cast<size_t>(I)]);
   });
   block_values_.assign(9 * block_col_.size(), 0.0);
-  auto block_of = [&](int I, int J) {  // J >= I
-    return block_start_[static_cast<size_t>(I)] + rows.find(I, J) - self[static_cast<size_t>(I)];
-  };
   // Each CSR value's block entry: row 3I + i's columns are row I's neighbours J, three each.
   csr_from_block_.assign(static_cast<size_t>(A_.nonZeros()), 0);
   const int* outer = A_.outerIndexPtr();
@@ -568,13 +561,17 @@ void SparseSystem::build_blocks(const detail::BlockRows& rows) {
       const int J = rows.block[static_cast<size_t>(k)];
       const int column = rows.column[static_cast<size_t>(k)];
       const bool upper = J >= I;
-      const int blk = upper ? block_start_[static_cast<size_t>(I)] + k - self[static_cast<size_t>(I)] : block_of(J, I);
+      const int blk = upper ? upper_block(rows, I, k) : upper_block(rows, J, rows.find(J, I));
       for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
           csr_from_block_[static_cast<size_t>(outer[3 * I + i] + column + j)] = upper ? 9 * blk + 3 * i + j : 9 * blk + 3 * j + i;
     }
   });
   block_ok_ = true;
+}
+
+int SparseSystem::upper_block(const detail::BlockRows& rows, int I, int k) const {
+  return block_start_[static_cast<size_t>(I)] + k - rows.self[static_cast<size_t>(I)];
 }
 
 void SparseSystem::sync_matrix() {

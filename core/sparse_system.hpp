@@ -263,6 +263,9 @@ class SparseSystem {
   std::vector<int> zero_begin_;
   // The block store (see has_blocks()).
   void build_blocks(const detail::BlockRows& rows);
+  /// Block (I, J) of the block store for J >= I, J at index k of block row I (into
+  /// rows.block): row I's blocks are the diagonal, then its neighbours above it.
+  int upper_block(const detail::BlockRows& rows, int I, int k) const;
   bool block_ok_ = false;
   bool blocks_current_ = false;
   std::vector<int> node_block_;                 // per node: its block row, or -1 (fixed)
