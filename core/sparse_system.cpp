@@ -470,7 +470,7 @@ void SparseSystem::order_runs(const TetMesh& mesh, LoopSchedule schedule, std::v
       colour_chunks(n, run_chunks);
     }
   }
-  if (schedule == LoopSchedule::automatic && colour_chunks_.size() > 3) {  // chunks after all
+  if (schedule == LoopSchedule::automatic && colour_chunks_.size() > static_cast<size_t>(kRunMaxColours)) {  // chunks after all
     order_ = chunk_order;
     colour_chunks(n);
   }

@@ -41,7 +41,7 @@ struct ElementBatch {
 /// How the element loop is laid out on the threads (SparseSystem::for_each_element_coloured).
 enum class LoopSchedule {
   /// `runs` when the mesh has at least kRunMinElements elements per run and its runs colour
-  /// in at most three colours, else `chunks`.
+  /// in at most kRunMaxColours colours, else `chunks`.
   automatic,
   /// Chunks of `chunk_size` neighbouring elements, coloured, each chunk its own task
   /// (balanced, but a colour's chunks are spread over the whole body: on a mesh whose
@@ -101,9 +101,13 @@ struct BlockRows {
 
 class SparseSystem {
  public:
-  /// Fewest elements per run for LoopSchedule::automatic to choose runs: below it the
-  /// matrix stays in cache and chunks balance better (measured: docs/performance.md).
-  static constexpr int kRunMinElements = 4096;
+  /// Fewest elements per run for LoopSchedule::automatic to choose runs (meshes of 2,048
+  /// elements and more): runs keep each node's blocks in cache from its first element to
+  /// its last, which pays from a few thousand elements on (docs/performance.md).
+  static constexpr int kRunMinElements = 128;
+  /// Most colours of the runs for LoopSchedule::automatic to keep them (four runs per
+  /// colour, two per thread on two cores); more, and the loop takes chunks.
+  static constexpr int kRunMaxColours = 4;
   /// Runs of LoopSchedule::runs: a fixed count, so that the element order (and with it
   /// the assembly's rounding) does not depend on the thread count; 8 per colour, four per
   /// thread on two cores.

@@ -509,9 +509,10 @@ TEST(SparseSystem, ColouredLoopNeverRunsNeighboursConcurrently) {
 // runs colour in two colours there.
 TEST(SparseSystem, AutomaticScheduleTakesRunsOnLargeMeshesOnly) {
   const int runs = core::SparseSystem::kRuns;
+  // A bar two cells long per run, 4 x 4 cells across: each run meets only its neighbours.
   const int cells_needed = (core::SparseSystem::kRunMinElements * runs + 5) / 6;
-  const int cx = (cells_needed + 99) / 100;
-  const core::TetMesh large = box({cx, 10, 10});
+  const int cx = std::max(2 * runs, (cells_needed + 15) / 16);
+  const core::TetMesh large = box({cx, 4, 4});
   ASSERT_GE(large.num_elements(), core::SparseSystem::kRunMinElements * runs);
   const core::SparseSystem sys(large, {});
   EXPECT_TRUE(sys.runs_in_runs());
