@@ -202,6 +202,8 @@ class SparseSystem {
     else
       A_.valuePtr()[diag_[static_cast<size_t>(k)]] += d;
   }
+  /// Block row I's diagonal block (I, I): 9 doubles, row-major (when has_blocks()).
+  const double* diagonal_block(int I) const { return block_values_.data() + 9 * static_cast<size_t>(block_start_[static_cast<size_t>(I)]); }
   /// y = A x from the blocks (current), on the OpenMP threads when `parallel`; returns x . A x.
   double block_product(const Eigen::VectorXd& x, Eigen::VectorXd& y, bool parallel) const;
   /// AW = A W for an n x 8 row-major W (the PCG's recycled solutions), from the blocks.

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 
 namespace fiberfem::core::detail {
 
@@ -24,10 +25,10 @@ SolveStats PcgSolver::solve(const SparseMatrix& A, const Eigen::VectorXd& b_in, 
   scaled_b_ = b_in / bn;
   const Eigen::VectorXd& b = scaled_b_;
   // The upper block store when it holds this matrix (the simulator's step) and this
-  // solver's passes have a block form (the cholesky preconditioner; the projection with
-  // eight recycled solutions); otherwise the CSR values, synced.
+  // solver's passes have a block form (the cholesky and block-Jacobi preconditioners; the
+  // projection with eight recycled solutions); otherwise the CSR values, synced.
   use_blocks_ = system_ && system_->blocks_current() && &A == &system_->matrix() &&
-                s_.preconditioner == PreconditionerKind::cholesky && (!s_.warm_start || s_.recycled_solutions == 8);
+                s_.preconditioner != PreconditionerKind::amg && (!s_.warm_start || s_.recycled_solutions == 8);
   if (system_ && system_->blocks_current() && !use_blocks_) system_->sync_matrix();
   pcg_.blocks_ = use_blocks_ ? system_ : nullptr;
   x /= bn;
@@ -50,7 +51,7 @@ SolveStats PcgSolver::solve_same_matrix(const SparseMatrix& A, const Eigen::Vect
   }
   scaled_b_ = b_in / bn;
   use_blocks_ = system_ && system_->blocks_current() && &A == &system_->matrix() &&
-                s_.preconditioner == PreconditionerKind::cholesky && s_.recycled_solutions == 8;
+                s_.preconditioner != PreconditionerKind::amg && s_.recycled_solutions == 8;
   if (system_ && system_->blocks_current() && !use_blocks_) system_->sync_matrix();
   pcg_.blocks_ = use_blocks_ ? system_ : nullptr;
   x /= bn;
@@ -62,7 +63,14 @@ SolveStats PcgSolver::solve_same_matrix(const SparseMatrix& A, const Eigen::Vect
 template <class Preconditioner>
 SolveStats PcgSolver::run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                           const Eigen::VectorXd* Ax0) {
-  pre.compute(A);
+  if constexpr (std::is_same_v<Preconditioner, BlockJacobiPreconditioner>) {
+    if (use_blocks_)
+      pre.compute_from_blocks(*system_);  // the diagonal blocks where the step left them
+    else
+      pre.compute(A);
+  } else {
+    pre.compute(A);
+  }
   return pcg_.solve(
       A, b, x, s_.tolerance, s_.max_iterations, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { pre._solve_impl(r, z); },
       Ax0);
@@ -79,8 +87,8 @@ SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd&
   SparseSystem* sync = use_blocks_ ? system_ : nullptr;
   FactorSlot* slot = &lagged_.select_slot(st);
   const bool start = lagged_.factor_beside(A, *slot);
-  // The copy to factorise, and block Jacobi, read the CSR values.
-  if ((start || slot->beside) && sync) sync->sync_matrix();
+  // The copy to factorise reads the CSR values (block Jacobi reads the blocks).
+  if (start && sync) sync->sync_matrix();
   int fallback = 0;  // iterations of block Jacobi that fell short
   if (start || slot->beside) {
     first_guess_ = x;
