@@ -3,12 +3,15 @@
 #
 #   scripts/vega/compare.sh [--vega-dir DIR] [--sizes "5600 8100 50000 250000"] [--steps 60]
 #                           [--repeat 1] [--scale 1] [--warp 2] [--jobs 1] [--out FILE.md]
+#                           [--fiberfem-set KEY=VALUE ...]
 #
 # Generates a 10 x 1 x 1 box beam per size with TetGen (Debian package `tetgen`), builds
 # scripts/vega/vega_beam against the Vega checkout (--vega-dir or $VEGA_DIR), writes the
 # fiberfem scene of the same problem, then per size runs, in turn, Vega (one thread),
 # fiberfem with --threads 1 and fiberfem with its default thread count, --repeat times
 # (the table gives each column's median). Prints a markdown table; --out also writes it.
+# --fiberfem-set (repeatable) passes a scene override to every fiberfem run (for example
+# solver.preconditioner=block_jacobi); the table's first line names it.
 # Work files go to build/vega-compare/ (FIBERFEM_BIN overrides the fiberfem binary).
 set -euo pipefail
 caller_dir="$PWD"
@@ -21,6 +24,7 @@ scale=1
 warp=2
 jobs=1
 out=""
+fiberfem_sets=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --vega-dir) vega_dir="$2"; shift 2 ;;
@@ -31,7 +35,8 @@ while [[ $# -gt 0 ]]; do
     --warp) warp="$2"; shift 2 ;;
     --jobs) jobs="$2"; shift 2 ;;
     --out) out="$2"; shift 2 ;;
-    *) echo "compare.sh: unknown option $1 (--vega-dir DIR, --sizes LIST, --steps N, --repeat N, --scale M, --warp W, --jobs N, --out FILE)" >&2
+    --fiberfem-set) fiberfem_sets+=(--set "$2"); shift 2 ;;
+    *) echo "compare.sh: unknown option $1 (--vega-dir DIR, --sizes LIST, --steps N, --repeat N, --scale M, --warp W, --jobs N, --out FILE, --fiberfem-set KEY=VALUE)" >&2
        exit 2 ;;
   esac
 done
@@ -138,7 +143,7 @@ run_fiberfem() {  # TARGET THREADS(1|default) REPEAT
   local threads=()
   # One thread, one core: the first factor waited for, not made on a thread beside.
   [[ "$2" == 1 ]] && threads=(--threads 1 --set solver.first_factorisation=wait)
-  "$fiberfem" run "$work/beam-$1.yaml" --steps "$steps" "${threads[@]}" --report "$work/fiberfem-$1-$2-$3.json" >/dev/null
+  "$fiberfem" run "$work/beam-$1.yaml" --steps "$steps" "${threads[@]}" ${fiberfem_sets[@]+"${fiberfem_sets[@]}"} --report "$work/fiberfem-$1-$2-$3.json" >/dev/null
 }
 
 run_size() {
@@ -160,7 +165,9 @@ build_driver
 for target in $sizes; do run_size "$target"; done
 vega_commit=$(git -C "$vega_dir" rev-parse --short HEAD 2>/dev/null || echo "unknown commit")
 
-python3 - "$work" "$steps" "$repeat" "$scale --warp $warp" "$vega_commit" $sizes <<'EOF' | tee "${out:-/dev/null}"
+sets_text=""
+for ((k = 1; k < ${#fiberfem_sets[@]}; k += 2)); do sets_text+=" --fiberfem-set ${fiberfem_sets[k]}"; done
+python3 - "$work" "$steps" "$repeat" "$scale --warp $warp$sets_text" "$vega_commit" $sizes <<'EOF' | tee "${out:-/dev/null}"
 # The two tables from the runs' outputs: vega-T-R.txt (`key value` lines of vega_beam) and
 # fiberfem-T-{1,default}-R.json (docs/report-format.md); each figure is the median over
 # the --repeat runs.
