@@ -1,0 +1,74 @@
+// TangentSolver: a lagged factor as BiCGSTAB's preconditioner (in single precision where
+// UMFPACK's factors are copied) still solves a later, different tangent to the forcing
+// asked for: checked against a dense LU of that tangent, on a saddle-point matrix whose
+// zero pressure block makes UMFPACK pivot off the diagonal (row and column permutations)
+// and whose rows differ in scale by orders of magnitude (its row scaling).
+#include "core/hyperelastic/tangent_solver.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include <random>
+#include <vector>
+
+namespace fiberfem::core::hyperelastic {
+namespace {
+
+// [[A, B^T], [B, 0]]: A a banded nonsymmetric "displacement" block with rows scaled from
+// 1e-3 to 1e3, B a sparse coupling to `np` pressures; `shift` perturbs A's values.
+SparseMatrix saddle(int nu, int np, double shift, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Eigen::Triplet<double>> t;
+  for (int i = 0; i < nu; ++i) {
+    const double row_scale = std::pow(10.0, 3.0 * (2.0 * i / (nu - 1) - 1.0));
+    t.emplace_back(i, i, row_scale * (8.0 + shift * u(rng)));
+    for (int d : {-7, -3, -1, 1, 2, 5}) {
+      const int j = i + d;
+      if (j >= 0 && j < nu) t.emplace_back(i, j, row_scale * (u(rng) + shift * u(rng)));
+    }
+  }
+  for (int k = 0; k < np; ++k)
+    for (int c = 0; c < 4; ++c) {
+      const int j = (k * 7 + c * 13) % nu;
+      const double v = 1.0 + 0.5 * u(rng);
+      t.emplace_back(nu + k, j, v);
+      t.emplace_back(j, nu + k, v);
+    }
+  SparseMatrix K(nu + np, nu + np);
+  K.setFromTriplets(t.begin(), t.end());
+  return K;
+}
+
+TEST(TangentSolver, ALaggedFactorSolvesALaterTangentToTheForcing) {
+  const int nu = 240, np = 30, n = nu + np;
+  const SparseMatrix K0 = saddle(nu, np, 0.0, 1);
+  SparseMatrix K1 = K0;
+  const SparseMatrix dK = saddle(nu, np, 0.05, 2) - saddle(nu, np, 0.0, 2);
+  K1 += dK;  // the same pattern, values moved by a few per cent (a later Newton tangent)
+  const Eigen::VectorXd R = Eigen::VectorXd::LinSpaced(n, -1.0, 2.0);
+
+  TangentSolver solver;
+  Eigen::VectorXd d0;
+  ASSERT_TRUE(solver.solve(K0, R, 1e-2, true, d0));  // fresh: factorised, solved directly
+  EXPECT_EQ(solver.factorisations(), 1);
+  const Eigen::VectorXd exact0 = Eigen::MatrixXd(K0).partialPivLu().solve(R);
+  EXPECT_LT((d0 - exact0).norm(), 1e-9 * exact0.norm());
+
+  for (double forcing : {1e-4, 1e-10}) {
+    Eigen::VectorXd d1;
+    const int krylov_before = solver.krylov_iterations();
+    ASSERT_TRUE(solver.solve(K1, R, forcing, false, d1));
+    EXPECT_EQ(solver.factorisations(), 1) << "the lagged factor served, no new factorisation";
+    EXPECT_GT(solver.krylov_iterations(), krylov_before);
+    EXPECT_LE((K1 * d1 - R).norm(), 1.01 * forcing * R.norm()) << "forcing " << forcing;
+    if (forcing == 1e-10) {
+      const Eigen::VectorXd exact1 = Eigen::MatrixXd(K1).partialPivLu().solve(R);
+      EXPECT_LT((d1 - exact1).norm(), 1e-6 * exact1.norm());
+    }
+  }
+}
+
+}  // namespace
+}  // namespace fiberfem::core::hyperelastic
