@@ -150,7 +150,7 @@ struct TangentSolver::Factor {
   /// After lu.factorize: the single-precision copy (where there is one).
   void copy_factor(int n) {
 #ifdef FIBERFEM_HAVE_UMFPACK
-    if (lu.info() == Eigen::Success) lagged.build(lu, n);
+    if (lu.info() != Eigen::Success || !lagged.build(lu, n)) lagged = FloatLU();  // none: UMFPACK's own solve
 #else
     (void)n;
 #endif
