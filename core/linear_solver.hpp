@@ -93,7 +93,7 @@ struct SolverSettings {
   bool warm_start = true;     ///< PCG starts from the last velocity. Default true.
   /// With warm_start: the initial guess is the best combination (Galerkin projection, the
   /// least A-norm error) of the last `recycled_solutions` solutions (the given guess is
-  /// used only before there are any),
+  /// used only before there are any: LinearSolver::takes_guess()),
   /// which costs one pass over A for all of them; 0 keeps the given guess. In [0, 64].
   /// Default 8 (halves PCG iterations on the cantilever benchmark, docs/performance.md).
   int recycled_solutions = 8;
@@ -206,6 +206,12 @@ class LinearSolver {
   /// The state jumped (reset, set_state): forget remembered solutions, so a run from a
   /// state does not depend on what was solved before it.
   virtual void forget_solutions() {}
+  /// Whether the next solve starts from the caller's guess as given: true for a PCG solver
+  /// with recycled solutions that remembers none yet (its first solve, or the first after
+  /// forget_solutions()); then a caller with a better guess than its last solution
+  /// (Simulator: the free-flight velocity) pays off. False when the guess is ignored
+  /// (direct) or replaced by the projection on remembered solutions.
+  virtual bool takes_guess() const { return false; }
   /// The system the matrices come from: a solver that can work from its upper block store
   /// (SparseSystem::has_blocks) reads the blocks while they are current and calls
   /// sync_matrix() before anything that needs the CSR values (a factorisation).

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <array>
@@ -68,46 +69,54 @@ TetMesh::TetMesh(Positions rest_positions, std::vector<Tet> tets, std::vector<in
 // 250,000 tets, the sort a quarter of it), so equal faces are neighbours.
 void TetMesh::build_boundary() {
   static constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+  // A face by its two larger nodes (the smallest is its bucket's), one 64-bit key, and
+  // its use; ordered by key, then use (the element order).
   struct Face {
-    std::array<int, 3> s;  // sorted node indices
-    int use;               // element * 4 + face
-    bool operator<(const Face& o) const {  // element-wise (std::array's < calls memcmp)
-      if (s[0] != o.s[0]) return s[0] < o.s[0];
-      if (s[1] != o.s[1]) return s[1] < o.s[1];
-      return s[2] != o.s[2] ? s[2] < o.s[2] : use < o.use;
-    }
+    std::uint64_t key;  // second smallest node << 32 | largest
+    int use;            // element * 4 + face
+    bool operator<(const Face& o) const { return key != o.key ? key < o.key : use < o.use; }
   };
   // Faces bucketed by their smallest node (a counting sort, in element order), each
   // bucket then sorted: the order of one sort of all of them (1 M faces at 250,000 tets),
   // in a fraction of its time.
   const size_t n = static_cast<size_t>(num_nodes());
   std::vector<int> start(n + 1, 0);
+  std::vector<int> lowest(tets_.size() * 4);
   std::vector<Face> made(tets_.size() * 4);
   for (size_t e = 0; e < tets_.size(); ++e)
     for (int f = 0; f < 4; ++f) {
-      Face k{{tets_[e][kFace[f][0]], tets_[e][kFace[f][1]], tets_[e][kFace[f][2]]}, static_cast<int>(e * 4 + f)};
-      std::sort(k.s.begin(), k.s.end());
-      made[e * 4 + static_cast<size_t>(f)] = k;
-      ++start[static_cast<size_t>(k.s[0]) + 1];
+      int a = tets_[e][kFace[f][0]], b = tets_[e][kFace[f][1]], c = tets_[e][kFace[f][2]];
+      if (a > b) std::swap(a, b);
+      if (b > c) std::swap(b, c);
+      if (a > b) std::swap(a, b);
+      const size_t u = e * 4 + static_cast<size_t>(f);
+      made[u] = {static_cast<std::uint64_t>(b) << 32 | static_cast<std::uint32_t>(c), static_cast<int>(u)};
+      lowest[u] = a;
+      ++start[static_cast<size_t>(a) + 1];
     }
   for (size_t v = 0; v < n; ++v) start[v + 1] += start[v];
   std::vector<Face> all(made.size());
   {
     std::vector<int> fill(start.begin(), start.end() - 1);
-    for (const Face& k : made) all[static_cast<size_t>(fill[static_cast<size_t>(k.s[0])]++)] = k;
+    for (size_t u = 0; u < made.size(); ++u) all[static_cast<size_t>(fill[static_cast<size_t>(lowest[u])]++)] = made[u];
   }
   // (On this thread: a mesh is read before a run's thread count is known.)
   for (size_t v = 0; v < n; ++v) std::sort(all.begin() + start[v], all.begin() + start[v + 1]);
   std::vector<std::pair<int, int>> faces;  // (element, face) of boundary faces
   const Face* over = nullptr;              // the face whose third use comes first in element order
-  for (size_t a = 0, b = 0; a < all.size(); a = b) {
-    for (b = a + 1; b < all.size() && all[b].s == all[a].s;) ++b;
-    if (b - a == 1) faces.emplace_back(all[a].use / 4, all[a].use % 4);
-    if (b - a > 2 && (!over || all[a + 2].use < over->use)) over = &all[a + 2];
-  }
+  size_t over_bucket = 0;
+  for (size_t v = 0; v < n; ++v)
+    for (size_t a = static_cast<size_t>(start[v]), b = a; a < static_cast<size_t>(start[v + 1]); a = b) {
+      for (b = a + 1; b < static_cast<size_t>(start[v + 1]) && all[b].key == all[a].key;) ++b;
+      if (b - a == 1) faces.emplace_back(all[a].use / 4, all[a].use % 4);
+      if (b - a > 2 && (!over || all[a + 2].use < over->use)) {
+        over = &all[a + 2];
+        over_bucket = v;
+      }
+    }
   if (over)
-    throw std::invalid_argument("mesh: face (" + std::to_string(over->s[0]) + ", " + std::to_string(over->s[1]) + ", " +
-                                std::to_string(over->s[2]) + ") is shared by more than two elements (element " +
+    throw std::invalid_argument("mesh: face (" + std::to_string(over_bucket) + ", " + std::to_string(over->key >> 32) + ", " +
+                                std::to_string(over->key & 0xffffffffu) + ") is shared by more than two elements (element " +
                                 std::to_string(over->use / 4) + ")");
   std::sort(faces.begin(), faces.end());  // deterministic order
   boundary_.reserve(faces.size());

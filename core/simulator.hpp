@@ -211,6 +211,7 @@ class Simulator {
   void assemble_step(double h, StepReport& r);
   bool solve_velocity(double h, StepReport& r, std::string& why);
   bool solve_free(double h, StepReport& r, std::string& why);
+  void free_flight_guess(double h);
   bool take_velocity(double h, std::string& why);
   // The circulation coupling (simulator_circulation.cpp).
   void setup_circulation();
@@ -245,6 +246,7 @@ class Simulator {
   // work
   Eigen::VectorXd f_, rhs_;
   Eigen::VectorXd guess_;  // warm start extrapolated from st_.vfree and st_.vfree_prev
+  Eigen::VectorXd flight_, flight_Av_, guess_Av_;  // free_flight_guess's work vectors
   Eigen::VectorXd f_active_;        // 3N, active-stress forces of the step (when active)
   // The checks of the last (sub)step made the next step's element pass (assemble_elements)
   // for step size ahead_h_: sys_ (without the mass terms), f_, f_active_ and st_.active_tension_pa belong

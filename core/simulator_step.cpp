@@ -128,6 +128,7 @@ bool Simulator::solve_free(double h, StepReport& r, std::string& why) {
     st_.vfree_prev = st_.vfree;
   }
   st_.last_h_s = h;
+  if (solver_->takes_guess()) free_flight_guess(h);
   solver_->set_matrix_key(h);
   if (solver_->uses_block_rotations()) {
     elements_->update_node_rotations(st_, settings_.corotation);
@@ -155,6 +156,58 @@ bool Simulator::solve_free(double h, StepReport& r, std::string& why) {
     return false;
   }
   return true;
+}
+
+// A solver that remembers no solutions yet (the first solve of a run, or the first after
+// a reset) starts from st_.vfree as given: that guess becomes the best combination, the
+// least A-norm error, of it and the free-flight velocity D^-1 b, D the mass diagonal
+// (1 + h alpha) M, the velocity the step would give if the stiffness were dropped. From
+// rest under a body force the free flight is exact away from the supports; block Jacobi
+// would build it over about as many iterations as the body is elements long (133 on the
+// 252,368-tet beam of docs/vega-comparison.md, whose step matrix the stiffness dominates
+// at the element scale). Where the stiffness dominates the motion (an active contraction)
+// the projection keeps the given guess: it is in the span, so never a worse start. Two
+// products with A, once.
+void Simulator::free_flight_guess(double h) {
+  const auto& fi = sys_.free_index();
+  const int nn = model_.mesh.num_nodes();
+  const Eigen::Index nf = sys_.num_free();
+  if (rhs_.size() != nf || st_.vfree.size() != nf) return;
+  flight_.resize(nf);
+  for (int n = 0; n < nn; ++n) {
+    const double md = mass_(n) + h * mass_alpha_(n);
+    for (int c = 0; c < 3; ++c) {
+      const int k = fi[static_cast<size_t>(3 * n + c)];
+      if (k >= 0) flight_(k) = md > 0 ? rhs_(k) / md : 0.0;
+    }
+  }
+  const bool par = nf > 20000;
+  const auto product = [&](const Eigen::VectorXd& v, Eigen::VectorXd& Av) {
+    if (sys_.blocks_current()) {
+      sys_.block_product(v, Av, par);
+    } else {
+      Av.resize(nf);
+      Av.noalias() = sys_.matrix() * v;  // both triangles stored
+    }
+  };
+  const Eigen::VectorXd& given = st_.vfree;
+  product(flight_, flight_Av_);
+  const double ff = flight_.dot(flight_Av_), fb = flight_.dot(rhs_);
+  if (!(ff > 0) || !std::isfinite(fb)) return;
+  Eigen::Vector2d c(0.0, fb / ff);
+  if (given.squaredNorm() > 0) {
+    product(given, guess_Av_);
+    Eigen::Matrix2d G;
+    G << given.dot(guess_Av_), given.dot(flight_Av_), flight_.dot(guess_Av_), ff;
+    const Eigen::Vector2d g(given.dot(rhs_), fb);
+    // Nearly parallel: keep the given guess (the 2 x 2 system says nothing new).
+    const double det = G(0, 0) * G(1, 1) - G(0, 1) * G(1, 0);
+    if (!(G(0, 0) > 0) || !(det > 1e-12 * G(0, 0) * G(1, 1))) return;
+    c = G.ldlt().solve(g);
+  }
+  if (!c.allFinite()) return;
+  guess_ = c(0) * given + c(1) * flight_;
+  if (guess_.allFinite()) st_.vfree.swap(guess_);
 }
 
 // The velocity st_.vfree becomes the state's, and the positions move by h v.

@@ -76,20 +76,28 @@ bool parse_token(std::string_view tok, T& v) {
 // Parses all whitespace-separated fields of a line as numbers of type T (from_chars: a
 // 250,000-tet TetGen mesh reads in a quarter of the time of a string stream per token).
 template <class T>
-std::vector<T> fields(Lines& lines, const std::string& line, const std::string& what) {
-  std::vector<T> out;
-  const std::string_view text(line);
+void fields_into(Lines& lines, std::string_view text, const std::string& what, std::vector<T>& out) {
+  out.clear();
   size_t at = 0;
+  // (A loop per character: find_first_of runs memchr over the set for each one.)
+  const auto space = [](char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\v' || c == '\f' || c == '\r'; };
+  const size_t size = text.size();
   while (true) {
-    at = text.find_first_not_of(" \t\n\v\f\r", at);
-    if (at == std::string_view::npos) break;
-    const size_t end = std::min(text.find_first_of(" \t\n\v\f\r", at), text.size());
+    while (at < size && space(text[at])) ++at;
+    if (at == size) break;
+    size_t end = at;
+    while (end < size && !space(text[end])) ++end;
     const std::string_view tok = text.substr(at, end - at);
     T v{};
     if (!parse_token(tok, v)) lines.fail("'" + printable(std::string(tok)) + "' is not a valid " + what);
     out.push_back(v);
     at = end;
   }
+}
+template <class T>
+std::vector<T> fields(Lines& lines, const std::string& line, const std::string& what) {
+  std::vector<T> out;
+  fields_into(lines, line, what, out);
   return out;
 }
 
@@ -441,11 +449,35 @@ bool tetgen_line(Lines& lines, std::string& line) {
   return false;
 }
 
-std::vector<double> tetgen_fields(Lines& lines, const std::string& what) {
-  std::string line;
+// The numbers of the next line into `out` (`line` and `out` are reused: no allocation per line).
+void tetgen_fields(Lines& lines, const std::string& what, std::string& line, std::vector<double>& out) {
   if (!tetgen_line(lines, line)) lines.fail("unexpected end of file, expected " + what);
-  return fields<double>(lines, line, "number");
+  fields_into(lines, line, "number", out);
 }
+
+// Point ids to indices: arithmetic while the ids run consecutively from the first (as
+// TetGen writes them), a hash map from the first id out of sequence on.
+class PointIds {
+ public:
+  // False if `id` was given before.
+  bool add(long id, int index) {
+    if (index == 0) first_ = id;
+    if (map_.empty() && id == first_ + index) return true;
+    if (map_.empty())  // out of sequence: the ones before go into the map
+      for (int i = 0; i < index; ++i) map_.emplace(first_ + i, i);
+    return map_.emplace(id, index).second;
+  }
+  // The index of `id`, or -1.
+  int find(long id, long count) const {
+    if (map_.empty()) return id >= first_ && id - first_ < count ? static_cast<int>(id - first_) : -1;
+    const auto it = map_.find(id);
+    return it == map_.end() ? -1 : it->second;
+  }
+
+ private:
+  long first_ = 0;
+  std::unordered_map<long, int> map_;
+};
 
 }  // namespace
 
@@ -453,43 +485,47 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
                           const std::string& ele_origin, double scale) {
   if (!(scale > 0 && std::isfinite(scale))) throw MeshFileError(node_origin + ": scale must be > 0");
   Lines nl(node, node_origin);
-  const std::vector<double> h = tetgen_fields(nl, "'<points> <dim> <attributes> <markers>'");
+  std::string line;
+  std::vector<double> h, f;
+  tetgen_fields(nl, "'<points> <dim> <attributes> <markers>'", line, h);
   if (h.size() < 2 || h[1] != 3) nl.fail("expected '<points> 3 <attributes> <markers>' (three-dimensional)");
   const long n = whole(nl, h[0], "the point count");
   const long nattr = h.size() > 2 ? whole(nl, h[2], "the attribute count", 0, 1e6) : 0;
   const long nmark = h.size() > 3 ? whole(nl, h[3], "the marker count") : 0;
   if (n < 0 || nattr < 0 || nmark < 0 || nmark > 1) nl.fail("bad header counts");
-  std::unordered_map<long, int> index_of_id;
-  index_of_id.reserve(static_cast<size_t>(std::min(n, 1L << 22)));  // a header's count is not trusted
+  PointIds index_of_id;
   std::vector<core::Vec3> pts;
+  pts.reserve(static_cast<size_t>(std::min(n, 1L << 22)));  // a header's count is not trusted
   for (long i = 0; i < n; ++i) {
-    const std::vector<double> f = tetgen_fields(nl, "a point");
+    tetgen_fields(nl, "a point", line, f);
     if (static_cast<long>(f.size()) != 4 + nattr + nmark) nl.fail("expected 'id x y z' plus attributes and marker");
     if (!std::isfinite(f[1]) || !std::isfinite(f[2]) || !std::isfinite(f[3])) nl.fail("non-finite coordinate");
     const long id = whole(nl, f[0], "the point id");
-    if (!index_of_id.emplace(id, static_cast<int>(i)).second) nl.fail("point " + std::to_string(id) + " is given twice");
+    if (!index_of_id.add(id, static_cast<int>(i))) nl.fail("point " + std::to_string(id) + " is given twice");
     pts.push_back(scale * core::Vec3(f[1], f[2], f[3]));
   }
   core::Positions X(3, static_cast<Eigen::Index>(pts.size()));
   for (size_t i = 0; i < pts.size(); ++i) X.col(static_cast<Eigen::Index>(i)) = pts[i];
   Lines el(ele, ele_origin);
-  const std::vector<double> eh = tetgen_fields(el, "'<tetrahedra> <nodes per tet> <attributes>'");
+  std::vector<double> eh;
+  tetgen_fields(el, "'<tetrahedra> <nodes per tet> <attributes>'", line, eh);
   if (eh.size() < 2 || eh[1] != 4) el.fail("expected '<tetrahedra> 4 <attributes>' (linear tetrahedra)");
   const long ne = whole(el, eh[0], "the tetrahedron count");
   const long eattr = eh.size() > 2 ? whole(el, eh[2], "the attribute count", 0, 1e6) : 0;
   if (ne < 0 || eattr < 0) el.fail("bad header counts");
   std::vector<core::Tet> tets;
   std::vector<int> regions;
+  tets.reserve(static_cast<size_t>(std::min(ne, 1L << 24)));
+  regions.reserve(tets.capacity());
   for (long i = 0; i < ne; ++i) {
-    const std::vector<double> f = tetgen_fields(el, "a tetrahedron");
+    tetgen_fields(el, "a tetrahedron", line, f);
     if (static_cast<long>(f.size()) != 5 + eattr) el.fail("expected 'id n1 n2 n3 n4' plus attributes");
     core::Tet t{};
     for (int k = 0; k < 4; ++k) {
       const long id = whole(el, f[static_cast<size_t>(1 + k)], "a point id");
-      const auto it = index_of_id.find(id);
-      if (it == index_of_id.end())
-        el.fail("tetrahedron refers to point " + std::to_string(id) + ", which is not in " + node_origin);
-      t[static_cast<size_t>(k)] = it->second;
+      const int index = index_of_id.find(id, static_cast<long>(pts.size()));
+      if (index < 0) el.fail("tetrahedron refers to point " + std::to_string(id) + ", which is not in " + node_origin);
+      t[static_cast<size_t>(k)] = index;
     }
     tets.push_back(t);
     regions.push_back(eattr > 0 ? static_cast<int>(whole(el, f[5], "the region attribute (non-negative)", 0, kIntMax)) : 0);

@@ -11,8 +11,13 @@ namespace fiberfem::core::detail {
 // The supernodal factorisation calls BLAS between the engine's OpenMP loops. A
 // multithreaded OpenBLAS keeps its threads spinning after the call and slows those loops
 // down (measured: the rotation phase 3x slower on two cores), so BLAS runs on one thread.
+// Only when it is not on one thread already: OpenBLAS's setter starts its threads again
+// when they have been stopped (service/app/main.cpp stops them).
 void CholeskyFactor::single_threaded_blas() {
   using SetThreads = void (*)(int);
+  using GetThreads = int (*)();
+  const auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
+  if (get && get() == 1) return;
   if (auto f = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) f(1);
 }
 #endif

@@ -37,6 +37,7 @@ class PcgSolver final : public LinearSolver {
   void set_system(SparseSystem* system) override { system_ = system; }
   bool reads_blocks() const override { return true; }
   void forget_solutions() override { recycler_.forget(); }
+  bool takes_guess() const override { return s_.warm_start && s_.recycled_solutions > 0 && recycler_.empty(); }
   LinearSolverState save_state() const override;
   void load_state(const LinearSolverState& st, const SparseMatrix& pattern) override;
 

@@ -26,6 +26,8 @@ class SolutionRecycler {
                                  const SparseSystem* blocks);
   /// Forgets every solution (the state jumped).
   void forget() { count_ = next_ = 0; }
+  /// Whether no solution is remembered (the next project() leaves the guess as given).
+  bool empty() const { return count_ == 0; }
   /// The basis into / from LinearSolverState's history fields.
   void save(LinearSolverState& st) const;
   /// @throws std::invalid_argument if the saved basis is inconsistent.
