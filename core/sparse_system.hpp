@@ -253,6 +253,7 @@ class SparseSystem {
   detail::BlockRows block_rows(const detail::NodeGraph& graph) const;
   void build_pattern(const detail::BlockRows& rows);
   void build_scatter(const detail::BlockRows& rows);
+  void ensure_block_scatter();
   /// Chunk order: the mesh's element order, or Morton order when that needs fewer colours.
   void order_chunks(const TetMesh& mesh, std::vector<std::uint64_t>& morton);
   /// Runs of chunks instead (LoopSchedule::runs, or automatic on large meshes).
@@ -289,7 +290,7 @@ class SparseSystem {
   // pattern. An element with a fixed DOF has 144 (value index of entry (i, j), column-major,
   // or -1) further on, at general_offset_[e].
   static constexpr int kBlockIndices = 48;
-  std::vector<int> block_scatter_;     // 48 per loop position (unused for elements with a fixed DOF)
+  std::vector<int> block_scatter_;     // 48 per loop position (unused for elements with a fixed DOF; empty until assemble() when the blocks are kept)
   std::vector<int> general_offset_;    // per loop position: offset into general_scatter_, or -1
   std::vector<int> general_scatter_;   // 144 per element with a fixed DOF
   int chunk_size_ = 32;
@@ -406,6 +407,7 @@ void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_ful
 
 template <bool Symmetric, class Kernel>
 void SparseSystem::assemble_impl(Kernel&& kernel, Eigen::VectorXd& f_full) {
+  ensure_block_scatter();
   double* values = A_.valuePtr();
   for_each_chunk_coloured([&](int begin, int end) {
    for (int position = begin; position < end; ++position) {

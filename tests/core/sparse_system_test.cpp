@@ -353,7 +353,9 @@ TEST(SparseSystem, BandwidthOrderNumbersNeighboursCloseTogether) {
       EXPECT_EQ(k < 0, fixed[static_cast<size_t>(3 * v + c)] != 0);
       if (k < 0) continue;
       ++seen[static_cast<size_t>(k)];
-      if (last >= 0) EXPECT_EQ(k, last + 1) << "node " << v;
+      if (last >= 0) {
+        EXPECT_EQ(k, last + 1) << "node " << v;
+      }
       last = k;
     }
   }
