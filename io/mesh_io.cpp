@@ -495,7 +495,7 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
   if (n < 0 || nattr < 0 || nmark < 0 || nmark > 1) nl.fail("bad header counts");
   PointIds index_of_id;
   std::vector<core::Vec3> pts;
-  pts.reserve(static_cast<size_t>(std::min(n, 1L << 22)));  // a header's count is not trusted
+  pts.reserve(static_cast<size_t>(std::min(n, 1L << 20)));  // a header's count is not trusted
   for (long i = 0; i < n; ++i) {
     tetgen_fields(nl, "a point", line, f);
     if (static_cast<long>(f.size()) != 4 + nattr + nmark) nl.fail("expected 'id x y z' plus attributes and marker");
@@ -515,7 +515,7 @@ core::TetMesh read_tetgen(std::istream& node, const std::string& node_origin, st
   if (ne < 0 || eattr < 0) el.fail("bad header counts");
   std::vector<core::Tet> tets;
   std::vector<int> regions;
-  tets.reserve(static_cast<size_t>(std::min(ne, 1L << 24)));
+  tets.reserve(static_cast<size_t>(std::min(ne, 1L << 20)));
   regions.reserve(tets.capacity());
   for (long i = 0; i < ne; ++i) {
     tetgen_fields(el, "a tetrahedron", line, f);

@@ -150,6 +150,31 @@ TEST(TetGen, SameMeshAsTheGmshFile) {
   EXPECT_THROW(fio::read_tetgen(n3, "m.node", e3, "m.ele"), fio::MeshFileError);
 }
 
+// Point ids need not run consecutively: ids out of sequence (a gap, then a smaller one)
+// give the same mesh as the same points numbered from 0, and an id given twice after them
+// is refused by line.
+TEST(TetGen, PointIdsInAnyOrder) {
+  const std::string node = "5 3 0 0\n0 0 0 -1\n1 1 0 0\n2 0 1 0\n3 -1 -1 0\n4 0 0 1\n";
+  const std::string ele = "2 4 0\n0 0 1 3 2\n1 4 3 2 1\n";
+  const std::string node_ids = "5 3 0 0\n10 0 0 -1\n11 1 0 0\n30 0 1 0\n12 -1 -1 0\n7 0 0 1\n";
+  const std::string ele_ids = "2 4 0\n0 10 11 12 30\n1 7 12 30 11\n";
+  std::istringstream n(node), e(ele), ni(node_ids), ei(ele_ids);
+  const core::TetMesh a = fio::read_tetgen(n, "a.node", e, "a.ele");
+  const core::TetMesh b = fio::read_tetgen(ni, "b.node", ei, "b.ele");
+  EXPECT_EQ(b.rest_positions(), a.rest_positions());
+  EXPECT_EQ(b.tets(), a.tets());
+  std::istringstream nd(replace_once(node_ids, "7 0 0 1", "11 0 0 1")), ed(ele_ids);
+  try {
+    fio::read_tetgen(nd, "d.node", ed, "d.ele");
+    ADD_FAILURE() << "expected an error";
+  } catch (const fio::MeshFileError& err) {
+    EXPECT_NE(std::string(err.what()).find("d.node:6:"), std::string::npos) << err.what();
+    EXPECT_NE(std::string(err.what()).find("point 11 is given twice"), std::string::npos) << err.what();
+  }
+  std::istringstream nm(node_ids), em(replace_once(ele_ids, "1 7 12 30 11", "1 7 12 13 11"));
+  EXPECT_THROW(fio::read_tetgen(nm, "m.node", em, "m.ele"), fio::MeshFileError);  // no point 13
+}
+
 // The numbers of a TetGen file are read as a string stream reads them (the reader parses
 // with from_chars): every token below is accepted or refused the same way, and an
 // accepted one gives the stream's value, bit for bit.
