@@ -91,7 +91,7 @@ SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd&
   // Jacobi on every thread and leaves them to the rest of its step (the energy check's
   // element pass): the first stepped state comes without the matrix's copy and with a
   // pass on two threads (about 80 ms sooner at 252,368 tets). Its next solve starts it.
-  const bool defer = beside && s_.warm_start && s_.recycled_solutions > 0 && recycler_.empty();
+  const bool defer = beside && takes_guess();
   const bool start = beside && !defer;
   // The copy to factorise reads the CSR values (block Jacobi reads the blocks).
   if (start && sync) sync->sync_matrix();
