@@ -1,5 +1,6 @@
 #include "core/corotated_linear_model.hpp"
 
+#include "core/element.hpp"
 #include "core/parallel.hpp"
 
 #include <algorithm>
@@ -9,7 +10,7 @@
 
 namespace fiberfem::core {
 
-CorotatedLinearModel::CorotatedLinearModel(const Model& model, const ElementCaches& caches, std::vector<int> block_nodes,
+CorotatedLinearModel::CorotatedLinearModel(const Model& model, std::vector<int> block_nodes,
                                            const std::vector<int>& element_order)
     : mesh_(model.mesh), order_(element_order), block_node_(std::move(block_nodes)) {
   const int ne = mesh_.num_elements();
@@ -22,8 +23,12 @@ CorotatedLinearModel::CorotatedLinearModel(const Model& model, const ElementCach
   beta_.assign(static_cast<size_t>(ne), 0.0);
   parallel_for(ne, [&](int kk) {
     const size_t k = static_cast<size_t>(kk), i = static_cast<size_t>(order_[k]);
-    elements_[k].Dm_inv = caches.Dm_inv[i];
-    for (int j = 0; j < 3; ++j) elements_[k].Dm.col(j) = caches.X[i].segment<3>(3 * (j + 1)) - caches.X[i].segment<3>(0);
+    const Vec12 X = gather(mesh_.rest_positions(), mesh_.tets()[i]);
+    for (int j = 0; j < 3; ++j) elements_[k].Dm.col(j) = X.segment<3>(3 * (j + 1)) - X.segment<3>(0);
+    // Out of line (core/element.cpp): inlined here, the compiler contracts the 3 x 3
+    // inverse into FMAs differently in parallel_for's serial and threaded loops, and the
+    // bits would depend on the thread count.
+    elements_[k].Dm_inv = rest_shape_inverse(X);
     elements_[k].fiber = model.fibers[i];
     elements_[k].volume = mesh_.rest_volume(order_[k]);
     tets_[k] = mesh_.tets()[i];

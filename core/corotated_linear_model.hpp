@@ -3,7 +3,6 @@
 /// (PHYSICS.md sections 2 to 6), in the closed form of core/spencer_element.hpp, several
 /// elements per SIMD pass with the rotations fused in.
 
-#include "core/element_cache.hpp"
 #include "core/element_model.hpp"
 #include "core/model.hpp"
 #include "core/spencer_element.hpp"
@@ -21,13 +20,12 @@ class CorotatedLinearModel final : public ElementModel {
   };
 
  public:
-  /// From a validated model and its element caches (rest positions and rest-shape
-  /// inverses). `block_nodes`: the node of each free node block, in block order
+  /// From a validated model (the rest shape of each element from its mesh). `block_nodes`: the node of each free node block, in block order
   /// (update_node_rotations). `element_order`: the assembly loop's order
   /// (SparseSystem::element_order()), in which the model stores what the pass reads per
   /// element, so that the pass reads it in sequence. Keeps a reference to model.mesh,
   /// which must outlive it.
-  CorotatedLinearModel(const Model& model, const ElementCaches& caches, std::vector<int> block_nodes,
+  CorotatedLinearModel(const Model& model, std::vector<int> block_nodes,
                        const std::vector<int>& element_order);
 
   double assemble(const ElementPass& pass, SimulatorState& st, SparseSystem& sys, Eigen::VectorXd& f,

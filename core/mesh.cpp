@@ -26,11 +26,7 @@ TetMesh::TetMesh(Positions rest_positions, std::vector<Tet> tets, std::vector<in
     if (!rest_.col(i).allFinite())
       throw std::invalid_argument("mesh: node " + std::to_string(i) + " has a non-finite coordinate");
   }
-  if (regions_.empty()) regions_.assign(tets_.size(), 0);
-  if (regions_.size() != tets_.size())
-    throw std::invalid_argument("mesh: " + std::to_string(regions_.size()) + " region ids for " +
-                                std::to_string(tets_.size()) + " elements");
-  num_regions_ = 0;
+  set_regions(std::move(regions_));
   volumes_.resize(tets_.size());
   for (size_t e = 0; e < tets_.size(); ++e) {
     const auto id = [e] { return "mesh: element " + std::to_string(e); };  // only for an error
@@ -43,9 +39,6 @@ TetMesh::TetMesh(Positions rest_positions, std::vector<Tet> tets, std::vector<in
         if (t[a] == t[b])
           throw std::invalid_argument(id() + " uses node " + std::to_string(t[a]) + " twice");
     }
-    if (regions_[e] < 0)
-      throw std::invalid_argument(id() + " has negative region id " + std::to_string(regions_[e]));
-    num_regions_ = std::max(num_regions_, regions_[e] + 1);
     double v = signed_volume(rest_.col(t[0]), rest_.col(t[1]), rest_.col(t[2]), rest_.col(t[3]));
     double h = 0.0;
     for (int a = 0; a < 4; ++a)
@@ -61,6 +54,22 @@ TetMesh::TetMesh(Positions rest_positions, std::vector<Tet> tets, std::vector<in
     volumes_[e] = v;
   }
   build_boundary();
+}
+
+void TetMesh::set_regions(std::vector<int> regions) {
+  if (regions.empty()) regions.assign(tets_.size(), 0);
+  if (regions.size() != tets_.size())
+    throw std::invalid_argument("mesh: " + std::to_string(regions.size()) + " region ids for " +
+                                std::to_string(tets_.size()) + " elements");
+  int count = 0;
+  for (size_t e = 0; e < regions.size(); ++e) {
+    if (regions[e] < 0)
+      throw std::invalid_argument("mesh: element " + std::to_string(e) + " has negative region id " +
+                                  std::to_string(regions[e]));
+    count = std::max(count, regions[e] + 1);
+  }
+  regions_ = std::move(regions);
+  num_regions_ = count;
 }
 
 // A face is on the boundary when exactly one element uses it. The face opposite local

@@ -37,6 +37,9 @@ class TetMesh {
   const Positions& rest_positions() const { return rest_; }
   const std::vector<Tet>& tets() const { return tets_; }
   const std::vector<int>& regions() const { return regions_; }
+  /// Replaces the region ids (one per element, >= 0); the shape, boundary and node sets stay.
+  /// @throws std::invalid_argument naming the first bad id, or a count that does not match.
+  void set_regions(std::vector<int> regions);
   /// Rest volume of element `e`, m^3 (positive).
   double rest_volume(int e) const { return volumes_[static_cast<size_t>(e)]; }
   const std::vector<double>& rest_volumes() const { return volumes_; }

@@ -60,11 +60,10 @@ Simulator::Simulator(Model model, SimulatorSettings settings)
       settings_((settings.validate(), with_threads_applied(settings))),
       sys_(model_.mesh, model_.fixed_dofs, 32, LoopSchedule::automatic, settings_.dof_order) {
   governor_ = ThreadGovernor(process_threads());
-  caches_.build(model_, /*with_stiffness=*/false);
   const int ne = model_.mesh.num_elements();
   // The one element family of the engine; another (core/element_model.hpp) would be
   // chosen here from the model.
-  elements_ = std::make_unique<CorotatedLinearModel>(model_, caches_, sys_.block_nodes(), sys_.element_order());
+  elements_ = std::make_unique<CorotatedLinearModel>(model_, sys_.block_nodes(), sys_.element_order());
   update_node_masses();
   refresh_external_forces();
   check_solver_fits(settings_.solver);

@@ -2,7 +2,6 @@
 /// @file The dynamic engine: corotated, linearised implicit backward Euler
 /// (PHYSICS.md sections 4 and 5) with rollback and substepping on failure.
 
-#include "core/element_cache.hpp"
 #include "core/element_model.hpp"
 #include "core/linear_solver.hpp"
 #include "core/model.hpp"
@@ -162,9 +161,6 @@ class Simulator {
 
   const Model& model() const { return model_; }
   const SimulatorSettings& settings() const { return settings_; }
-  /// Rest positions and rest-shape inverses per element (no K^e: the step uses the closed
-  /// form of core/spencer_element.hpp; element_stiffness gives K^e when wanted).
-  const ElementCaches& caches() const { return caches_; }
   const SparseSystem& system() const { return sys_; }
   /// The linear solver (its factor_info() for reports and benchmarks).
   const LinearSolver& linear_solver() const { return *solver_; }
@@ -231,7 +227,6 @@ class Simulator {
   Model model_;
   SimulatorState st_;  // everything a checkpoint saves besides the solver's memory
   SimulatorSettings settings_;
-  ElementCaches caches_;                  // X and Dm_inv (no K^e, no g^e)
   SparseSystem sys_;
   // What the elements contribute (forces, tangent blocks, energy, rotations): the
   // corotated linear tetrahedron. Reads model_.mesh.

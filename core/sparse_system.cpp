@@ -10,6 +10,7 @@
 #include <string>
 #include <omp.h>
 #include <cstdint>
+#include <cstring>
 #include <stdexcept>
 
 namespace fiberfem::core {
@@ -80,14 +81,27 @@ detail::NodeGraph node_graph(int num_nodes, const std::vector<Tet>& tets) {
   return g;
 }
 
+// An unsigned key in the order of a double's (-0 as +0; no NaNs here), and a key as itself.
+std::uint64_t sort_key(std::uint64_t k) { return k; }
+std::uint64_t sort_key(double d) {
+  std::uint64_t u;
+  d += 0.0;  // -0 -> +0: equal keys, as for operator<
+  std::memcpy(&u, &d, sizeof u);
+  return (u >> 63) ? ~u : u | (std::uint64_t{1} << 63);
+}
+
 // std::stable_sort of order[begin, end) by key[order[i]], as one sort of (key, position)
 // pairs: the keys side by side instead of gathered through the order at every
-// comparison (three times faster on 252,368 elements).
+// comparison, by Boost's spreadsort (a radix sort on the key: at 252,368 elements about
+// three times faster than std::sort of the pairs). The pairs are distinct, so the order
+// is the one any sort of them gives.
 template <class Key>
 void stable_sort_by_key(std::vector<int>& order, int begin, int end, const std::vector<Key>& key) {
-  std::vector<std::pair<Key, int>> pairs(static_cast<size_t>(end - begin));
-  for (int i = begin; i < end; ++i) pairs[static_cast<size_t>(i - begin)] = {key[static_cast<size_t>(order[static_cast<size_t>(i)])], i};
-  std::sort(pairs.begin(), pairs.end());  // (ties: by position, as stable)
+  using Pair = std::pair<std::uint64_t, int>;
+  std::vector<Pair> pairs(static_cast<size_t>(end - begin));
+  for (int i = begin; i < end; ++i)
+    pairs[static_cast<size_t>(i - begin)] = {sort_key(key[static_cast<size_t>(order[static_cast<size_t>(i)])]), i};
+  detail::sort_keyed(pairs);  // ties: by position, as stable
   std::vector<int> sorted(pairs.size());
   for (size_t k = 0; k < pairs.size(); ++k) sorted[k] = order[static_cast<size_t>(pairs[k].second)];
   std::copy(sorted.begin(), sorted.end(), order.begin() + begin);
@@ -396,22 +410,24 @@ void SparseSystem::build_scatter(const detail::BlockRows& rows) {
     int K[4];
     for (int a = 0; a < 4; ++a) K[a] = rows.row_of_node[static_cast<size_t>(t[a])];
     if (general_offset_[e] < 0) {
-      int index[4][4];  // of node b's block in node a's row
-      for (int a = 0; a < 4; ++a)
-        for (int b = 0; b < 4; ++b) index[a][b] = a == b ? rows.self[static_cast<size_t>(K[a])] : rows.find(K[a], K[b]);
+      if (block_ok_) {  // each pair's upper block: one search, in the row of the smaller K
+        for (int a = 0; a < 4; ++a)
+          for (int b = a; b < 4; ++b) {
+            const int lo = std::min(K[a], K[b]), hi = std::max(K[a], K[b]);
+            const int index = a == b ? rows.self[static_cast<size_t>(lo)] : rows.find(lo, hi);
+            element_blocks_[e * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
+                2 * upper_block(rows, lo, index) + (K[a] <= K[b] ? 0 : 1);
+          }
+        return;
+      }
       for (int a = 0; a < 4; ++a) {
         const int r0 = free_index_[static_cast<size_t>(3 * t[a])];
-        if (!block_ok_)
-          for (int b = 0; b < 4; ++b) {
-            const int offset = rows.column[static_cast<size_t>(index[a][b])];
-            for (int i = 0; i < 3; ++i) block_scatter_[e * kBlockIndices + static_cast<size_t>((4 * a + b) * 3 + i)] = outer[r0 + i] + offset;
-          }
+        for (int b = 0; b < 4; ++b) {  // node b's block in node a's row
+          const int index = a == b ? rows.self[static_cast<size_t>(K[a])] : rows.find(K[a], K[b]);
+          const int offset = rows.column[static_cast<size_t>(index)];
+          for (int i = 0; i < 3; ++i) block_scatter_[e * kBlockIndices + static_cast<size_t>((4 * a + b) * 3 + i)] = outer[r0 + i] + offset;
+        }
       }
-      if (block_ok_)
-        for (int a = 0; a < 4; ++a)
-          for (int b = a; b < 4; ++b)
-            element_blocks_[e * 10 + static_cast<size_t>(ElementBatch::block_index(a, b))] =
-                K[a] <= K[b] ? 2 * upper_block(rows, K[a], index[a][b]) : 2 * upper_block(rows, K[b], index[b][a]) + 1;
       return;
     }
     int* s = &general_scatter_[static_cast<size_t>(general_offset_[e])];

@@ -97,6 +97,11 @@ struct BlockRows {
   int find(int K, int J) const;
 };
 
+/// Sorts (key, position) pairs ascending, by Boost's spreadsort (a radix sort on the key;
+/// core/keyed_sort.cpp, apart because Boost.Sort's namespace clashes with Boost.Graph's
+/// headers in one translation unit). Distinct pairs come out as any sort leaves them.
+void sort_keyed(std::vector<std::pair<std::uint64_t, int>>& pairs);
+
 }  // namespace detail
 
 class SparseSystem {

@@ -27,10 +27,9 @@ const std::vector<std::string> kTopKeys = {"name",   "mesh",        "regions", "
 // The mesh with each element's region, the regions' materials and damping.
 core::Model regions_model(const CheckedMap& top, SceneFiles& files, double refine, std::vector<std::string>& names,
                           SceneParameters& parameters, detail::MeshExtras& extras) {
-  const core::TetMesh generated = detail::read_scene_mesh(top, files, refine, extras);
-  detail::Regions regions = detail::read_regions(top, generated);
-  core::TetMesh mesh(generated.rest_positions(), generated.tets(), regions.region_of);
-  for (const auto& [name, nodes] : generated.node_sets()) mesh.set_node_set(name, nodes);
+  core::TetMesh mesh = detail::read_scene_mesh(top, files, refine, extras);
+  detail::Regions regions = detail::read_regions(top, mesh);
+  mesh.set_regions(std::move(regions.region_of));
   core::Model model(std::move(mesh));
   model.region_materials = std::move(regions.materials);
   std::vector<core::RayleighDamping> damping;

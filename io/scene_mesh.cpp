@@ -29,8 +29,11 @@ core::TetMesh mesh_file(const CheckedMap& m, SceneFiles& files, MeshExtras& extr
   files.mesh_file = path;
   const double scale = m.has("scale") ? m.number("scale", 0, HUGE_VAL, true) : 1.0;
   try {
+    const bool embedded = files.embedded && files.embedded->count(path);  // a built-in scene's mesh (gmsh only)
+    const bool gmsh = embedded || (path.size() >= 4 && path.compare(path.size() - 4, 4, ".msh") == 0);
+    if (!gmsh) return io::read_mesh(path, scale);  // TetGen and VTK files hold linear tetrahedra only
     OrderedMesh read = [&] {
-      if (files.embedded && files.embedded->count(path)) {  // a built-in scene's mesh (gmsh only)
+      if (embedded) {
         std::istringstream in(files.embedded->at(path));
         return read_gmsh_any_order(in, path, scale);
       }

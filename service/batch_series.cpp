@@ -87,6 +87,11 @@ RunSeries::RunSeries(const io::Scene& sc, const Engine& engine)
     volumes_.emplace_back(rest_volume_m3_.back());
   }
   for (size_t k = 0; k < sc.probes.size(); ++k) probe_u_.emplace_back(0.0);
+  if (fiber_stretch_) {
+    const core::TetMesh& mesh = sc.model.mesh;
+    dm_inv_.reserve(static_cast<size_t>(mesh.num_elements()));
+    for (const core::Tet& t : mesh.tets()) dm_inv_.push_back(core::rest_shape_inverse(core::gather(mesh.rest_positions(), t)));
+  }
 }
 
 // The beat a state at time t belongs to: the state at a boundary closes the beat before.
@@ -127,7 +132,7 @@ void RunSeries::close_beat(long beat, double now_s) {
 // The volume-weighted mean of |F f| over the mesh.
 double RunSeries::mean_fiber_stretch(const core::Simulator& sim) const {
   const core::Model& model = sc_.model;
-  const std::vector<core::Mat3>& Dm_inv = sim.caches().Dm_inv;
+  const std::vector<core::Mat3>& Dm_inv = dm_inv_;
   double sum = 0;
   for (int e = 0; e < model.mesh.num_elements(); ++e) {
     const size_t i = static_cast<size_t>(e);

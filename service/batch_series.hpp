@@ -85,6 +85,7 @@ class RunSeries {
   double beat_period_s_, dt_s_, total_volume_m3_;
   bool contracting_;
   bool fiber_stretch_;  ///< The mean fiber shortening is recorded (the real-time tier's contracting runs).
+  std::vector<core::Mat3> dm_inv_;  ///< Rest-shape inverse per element, with fiber_stretch_.
   std::vector<BeatSeries> volumes_, probe_u_;
   std::vector<double> rest_volume_m3_;
   BeatSeries stretch_{1.0};

@@ -23,7 +23,7 @@ struct FrameView {
   const std::vector<double>* activation = nullptr;
   /// Per element rest fiber, unit; needed for Field::fiber_strain and fiber glyphs.
   const std::vector<core::Vec3>* fibers = nullptr;
-  /// Per element Dm^-1 (the simulator's ElementCaches::Dm_inv), 1/m; optional: without
+  /// Per element Dm^-1, 1/m; optional: without
   /// it the renderer uses its own copy for the surface elements (Surface::surface_dm_inv()).
   const std::vector<core::Mat3>* dm_inv = nullptr;
   /// The pressure-volume loops so far (a run with a circulation), drawn as an inset when

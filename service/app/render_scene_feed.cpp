@@ -106,7 +106,6 @@ Feed scene_feed(const RenderArgs& a) {
   f.to_draw = a.last ? 1 : is_static ? 2 : !at.empty() ? static_cast<long>(at.size()) : steps / a.every + 1;
   auto run = std::make_shared<service::RunDriver>(*sc, service::Parameters::fixed);
   // The simulator's rest-shape inverses (the accurate tier has none: the renderer makes its own).
-  if (const core::Simulator* sim = run->engine().real_time()) f.dm_inv = &sim->caches().Dm_inv;
   if (is_static) static_frames(f, sc, run);
   else dynamic_frames(f, run, steps);
   if (!is_static && run->circulation())  // the state next() gave last

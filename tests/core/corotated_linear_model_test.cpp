@@ -34,17 +34,12 @@ core::Model small_box(bool isotropic) {
 // The element model and the state and system it works on, as the Simulator holds them.
 struct Pass {
   explicit Pass(bool isotropic)
-      : model(small_box(isotropic)), sys(model.mesh, model.fixed_dofs), elements(model, caches_of(model), sys.block_nodes(), sys.element_order()) {
+      : model(small_box(isotropic)), sys(model.mesh, model.fixed_dofs), elements(model, sys.block_nodes(), sys.element_order()) {
     const size_t ne = static_cast<size_t>(model.mesh.num_elements());
     st.R.assign(ne, Mat3::Identity());
     st.q.assign(ne, Eigen::Quaterniond::Identity());
     st.block_R.assign(static_cast<size_t>(model.mesh.num_nodes()), Mat3::Identity());
     st.block_q.assign(static_cast<size_t>(model.mesh.num_nodes()), Eigen::Quaterniond::Identity());
-  }
-  static core::ElementCaches caches_of(const core::Model& m) {
-    core::ElementCaches c;
-    c.build(m, /*with_stiffness=*/false);
-    return c;
   }
   // One pass at positions x with exact (SVD) rotations; returns its elastic energy.
   double run(const Eigen::VectorXd& x) {

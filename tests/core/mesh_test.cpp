@@ -266,6 +266,31 @@ TEST(TetMesh, RegionsCountMaxIdPlusOne) {
   EXPECT_EQ(plain.regions(), std::vector<int>(hm.tets.size(), 0));
 }
 
+// Regions set after construction (the scene reader's order: the mesh first, then the
+// regions selected on it) keep the shape, the boundary, the reoriented list and the node
+// sets; a bad list is refused and leaves the regions as they were.
+TEST(TetMesh, RegionsSetLaterKeepTheRestOfTheMesh) {
+  Positions x(3, 5);
+  x << 0, 1, 0, 0, 1,  //
+      0, 0, 1, 0, 1,   //
+      0, 0, 0, 1, 1;
+  core::TetMesh mesh(x, {{0, 1, 2, 3}, {1, 3, 2, 4}});  // element 1 reoriented
+  mesh.set_node_set("top", {4});
+  const std::vector<Tri> boundary = mesh.boundary_triangles();
+  mesh.set_regions({1, 4});
+  EXPECT_EQ(mesh.regions(), (std::vector<int>{1, 4}));
+  EXPECT_EQ(mesh.num_regions(), 5);
+  EXPECT_EQ(mesh.boundary_triangles(), boundary);
+  EXPECT_EQ(mesh.reoriented_elements(), std::vector<int>{1});
+  EXPECT_EQ(mesh.node_set("top"), std::vector<int>{4});
+  expect_invalid([&] { mesh.set_regions({0, -2}); }, {"element 1", "negative region id -2"});
+  expect_invalid([&] { mesh.set_regions({0, 1, 2}); }, {"3 region ids for 2 elements"});
+  EXPECT_EQ(mesh.regions(), (std::vector<int>{1, 4}));
+  mesh.set_regions({});
+  EXPECT_EQ(mesh.regions(), (std::vector<int>{0, 0}));
+  EXPECT_EQ(mesh.num_regions(), 1);
+}
+
 TEST(TetMesh, NodeSets) {
   const HandMesh hm = cube_mesh(2, 1.0);
   core::TetMesh mesh(hm.x, hm.tets);
