@@ -125,10 +125,10 @@ void DynamicSolver::set_substeps(int n) {
   substeps_ = n;
 }
 
-DynamicState DynamicSolver::state() const { return {x_, v_, p_, t_s_, steps_, linear_.state()}; }
+DynamicState DynamicSolver::state() const { return {x_, v_, p_, t_s_, steps_, linear_.state(), {}, {}}; }
 
 void DynamicSolver::continue_from(DynamicSolver& previous) {
-  DynamicState s{previous.x_, previous.v_, previous.p_, previous.t_s_, previous.steps_, {}};
+  DynamicState s{previous.x_, previous.v_, previous.p_, previous.t_s_, previous.steps_, {}, {}, {}};
   restore(s);  // checks the sizes; no factor yet
   linear_.take_memory(previous.linear_);
 }

@@ -67,7 +67,9 @@ TEST(DynamicSolver, SubstepsAreBackwardEulerAtTheSubstepAndCountAsOneStep) {
     solver.set_substeps(n);
     for (int i = 0; i < n; ++i) {
       ASSERT_TRUE(solver.step(Loading{}).converged);
-      if (i == 1) EXPECT_THROW(solver.set_substeps(1), std::invalid_argument);  // only between steps
+      if (i == 1) {
+        EXPECT_THROW(solver.set_substeps(1), std::invalid_argument);  // only between steps
+      }
     }
     EXPECT_EQ(solver.steps(), s + 1);
     solver.set_substeps(1);
