@@ -15,10 +15,27 @@ namespace fiberfem::core::hyperelastic {
 namespace {
 
 #ifdef FIBERFEM_HAVE_UMFPACK
-// UMFPACK's LU with its numeric object in reach (for FloatLU).
-class LU : public Eigen::UmfPackLU<SparseMatrix> {
+// UMFPACK's LU with its numeric object in reach (for FloatLU), in its 64-bit-index form
+// (umfpack_dl; the matrix copied to 64-bit indices at each factorisation): the 32-bit form
+// runs out of its int-indexed workspace on mixed problems of about 150,000 unknowns (Land
+// problem 3 on lv_ellipsoid 60 / 25 / 5 failed to factorise at the rest state).
+using LongMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, SuiteSparse_long>;
+class LU : public Eigen::UmfPackLU<LongMatrix> {
+  using Base = Eigen::UmfPackLU<LongMatrix>;
+
  public:
   void* numeric() const { return m_numeric; }
+  void analyzePattern(const SparseMatrix& A) {
+    a_ = A;
+    Base::analyzePattern(a_);
+  }
+  void factorize(const SparseMatrix& A) {  // A with the pattern analysed
+    a_ = A;
+    Base::factorize(a_);
+  }
+
+ private:
+  LongMatrix a_;  // the matrix in 64-bit indices; UMFPACK's solve reads it too
 };
 
 // A single-precision copy of UMFPACK's factors, P (R A) Q = L U (R the row scaling), to
@@ -30,18 +47,19 @@ class FloatLU {
  public:
   bool build(const LU& lu, int n) {
     ok_ = false;
-    int lnz = 0, unz = 0, rows = 0, cols = 0, nz_udiag = 0;
-    if (umfpack_di_get_lunz(&lnz, &unz, &rows, &cols, &nz_udiag, lu.numeric()) != UMFPACK_OK || rows != n || cols != n)
+    using Long = SuiteSparse_long;
+    Long lnz = 0, unz = 0, rows = 0, cols = 0, nz_udiag = 0;
+    if (umfpack_dl_get_lunz(&lnz, &unz, &rows, &cols, &nz_udiag, lu.numeric()) != UMFPACK_OK || rows != n || cols != n)
       return false;
-    std::vector<int> Lp(static_cast<size_t>(n) + 1), Lj(static_cast<size_t>(lnz)), Up(static_cast<size_t>(n) + 1),
-        Ui(static_cast<size_t>(unz));
+    std::vector<Long> Lp(static_cast<size_t>(n) + 1), Lj(static_cast<size_t>(lnz)), Up(static_cast<size_t>(n) + 1),
+        Ui(static_cast<size_t>(unz)), P(static_cast<size_t>(n)), Q(static_cast<size_t>(n));
     std::vector<double> Lx(static_cast<size_t>(lnz)), Ux(static_cast<size_t>(unz)), Rs(static_cast<size_t>(n));
-    p_.resize(static_cast<size_t>(n));
-    q_.resize(static_cast<size_t>(n));
-    int do_recip = 0;
-    if (umfpack_di_get_numeric(Lp.data(), Lj.data(), Lx.data(), Up.data(), Ui.data(), Ux.data(), p_.data(), q_.data(),
+    Long do_recip = 0;
+    if (umfpack_dl_get_numeric(Lp.data(), Lj.data(), Lx.data(), Up.data(), Ui.data(), Ux.data(), P.data(), Q.data(),
                                nullptr, &do_recip, Rs.data(), lu.numeric()) != UMFPACK_OK)
       return false;
+    p_.assign(P.begin(), P.end());
+    q_.assign(Q.begin(), Q.end());
     // Rows of L without their unit diagonal (stored last); columns of U with the diagonal
     // kept apart as its reciprocal (stored last).
     lp_.assign(static_cast<size_t>(n) + 1, 0);
@@ -50,11 +68,11 @@ class FloatLU {
     lj_.reserve(static_cast<size_t>(lnz - n));
     lx_.reserve(static_cast<size_t>(lnz - n));
     for (int i = 0; i < n; ++i) {
-      for (int k = Lp[static_cast<size_t>(i)]; k < Lp[static_cast<size_t>(i) + 1] - 1; ++k) {
-        lj_.push_back(Lj[static_cast<size_t>(k)]);
+      for (Long k = Lp[static_cast<size_t>(i)]; k < Lp[static_cast<size_t>(i) + 1] - 1; ++k) {
+        lj_.push_back(static_cast<int>(Lj[static_cast<size_t>(k)]));
         lx_.push_back(static_cast<float>(Lx[static_cast<size_t>(k)]));
       }
-      lp_[static_cast<size_t>(i) + 1] = static_cast<int>(lj_.size());
+      lp_[static_cast<size_t>(i) + 1] = lj_.size();
     }
     up_.assign(static_cast<size_t>(n) + 1, 0);
     ui_.clear();
@@ -63,14 +81,14 @@ class FloatLU {
     ux_.reserve(static_cast<size_t>(unz - n));
     inv_diag_.resize(static_cast<size_t>(n));
     for (int j = 0; j < n; ++j) {
-      const int last = Up[static_cast<size_t>(j) + 1] - 1;
+      const Long last = Up[static_cast<size_t>(j) + 1] - 1;
       if (last < Up[static_cast<size_t>(j)] || Ui[static_cast<size_t>(last)] != j || Ux[static_cast<size_t>(last)] == 0.0)
         return false;  // a zero pivot: UMFPACK's own solve reports it
-      for (int k = Up[static_cast<size_t>(j)]; k < last; ++k) {
-        ui_.push_back(Ui[static_cast<size_t>(k)]);
+      for (Long k = Up[static_cast<size_t>(j)]; k < last; ++k) {
+        ui_.push_back(static_cast<int>(Ui[static_cast<size_t>(k)]));
         ux_.push_back(static_cast<float>(Ux[static_cast<size_t>(k)]));
       }
-      up_[static_cast<size_t>(j) + 1] = static_cast<int>(ui_.size());
+      up_[static_cast<size_t>(j) + 1] = ui_.size();
       inv_diag_[static_cast<size_t>(j)] = static_cast<float>(1.0 / Ux[static_cast<size_t>(last)]);
     }
     scale_.resize(static_cast<size_t>(n));
@@ -89,16 +107,15 @@ class FloatLU {
     for (int k = 0; k < n; ++k) {
       const int i = p_[static_cast<size_t>(k)];
       float s = static_cast<float>(scale_[static_cast<size_t>(i)] * b(i));
-      for (int p = lp_[static_cast<size_t>(k)]; p < lp_[static_cast<size_t>(k) + 1]; ++p)
-        s -= lx_[static_cast<size_t>(p)] * w[lj_[static_cast<size_t>(p)]];
+      for (size_t p = lp_[static_cast<size_t>(k)]; p < lp_[static_cast<size_t>(k) + 1]; ++p)
+        s -= lx_[p] * w[lj_[p]];
       w[k] = s;
     }
     // U z = y, by columns from the last.
     for (int j = n - 1; j >= 0; --j) {
       const float z = w[j] * inv_diag_[static_cast<size_t>(j)];
       w[j] = z;
-      for (int p = up_[static_cast<size_t>(j)]; p < up_[static_cast<size_t>(j) + 1]; ++p)
-        w[ui_[static_cast<size_t>(p)]] -= ux_[static_cast<size_t>(p)] * z;
+      for (size_t p = up_[static_cast<size_t>(j)]; p < up_[static_cast<size_t>(j) + 1]; ++p) w[ui_[p]] -= ux_[p] * z;
     }
     Eigen::VectorXd x(n);
     for (int k = 0; k < n; ++k) x(q_[static_cast<size_t>(k)]) = static_cast<double>(w[k]);
@@ -107,7 +124,8 @@ class FloatLU {
 
  private:
   bool ok_ = false;
-  std::vector<int> p_, q_, lp_, lj_, up_, ui_;
+  std::vector<int> p_, q_, lj_, ui_;  // permutations; column (L) and row (U) indices < n
+  std::vector<size_t> lp_, up_;       // row (L) and column (U) starts: may pass 2^31
   std::vector<float> lx_, ux_, inv_diag_;
   std::vector<double> scale_;
   mutable std::vector<float> w_;
