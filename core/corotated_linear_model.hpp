@@ -20,7 +20,8 @@ class CorotatedLinearModel final : public ElementModel {
   };
 
  public:
-  /// From a validated model (the rest shape of each element from its mesh). `block_nodes`: the node of each free node block, in block order
+  /// From a validated model (the rest shape of each element from its mesh). `block_nodes`:
+  /// the node of each free node block, in block order
   /// (update_node_rotations). `element_order`: the assembly loop's order
   /// (SparseSystem::element_order()), in which the model stores what the pass reads per
   /// element, so that the pass reads it in sequence. Keeps a reference to model.mesh,

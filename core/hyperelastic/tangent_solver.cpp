@@ -6,6 +6,7 @@
 #include <Eigen/UmfPackSupport>
 #endif
 
+#include <algorithm>
 #include <chrono>
 #include <vector>
 #include <stdexcept>
@@ -29,8 +30,11 @@ class LU : public Eigen::UmfPackLU<LongMatrix> {
     a_ = A;
     Base::analyzePattern(a_);
   }
-  void factorize(const SparseMatrix& A) {  // A with the pattern analysed
-    a_ = A;
+  void factorize(const SparseMatrix& A) {  // A with the pattern analysed (UMFPACK's rule): its values copied
+    if (A.isCompressed() && A.nonZeros() == a_.nonZeros() && A.rows() == a_.rows())
+      std::copy(A.valuePtr(), A.valuePtr() + A.nonZeros(), a_.valuePtr());
+    else
+      a_ = A;
     Base::factorize(a_);
   }
 
