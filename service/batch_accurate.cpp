@@ -57,7 +57,7 @@ int run_static_accurate(const io::Scene& sc, json& report, std::ostream& out) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::snprintf(line, sizeof line,
                 "static: %s after %d Newton iterations in %d load steps (%d cut-backs), relative residual %.2e, %d "
-                "unknowns, %.2f s (assembly %.2f s, linear solves %.2f s: %d factorisations, %d BiCGSTAB iterations on "
+                "unknowns, %.2f s (assembly %.2f s, linear solves %.2f s: %d factorisations, %d GMRES iterations on "
                 "lagged factors)\n",
                 r.converged ? "converged" : "NOT converged", r.iterations, r.load_steps, r.cutbacks, r.relative_residual,
                 r.equations, wall, r.assembly_s, r.factor_s, r.factorisations, r.krylov_iterations);

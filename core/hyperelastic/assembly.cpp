@@ -270,29 +270,34 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, con
         }
         if (K == nullptr) continue;
         // B_b(iJ, k) = sum_L A(iJ, kL) dN_b/dX_L, then K_ab(i, k) = sum_J dN_a/dX_J B_b(iJ, k).
+        // A has major symmetry (A(iJ, kL) = A(kL, iJ): every term is a second derivative of
+        // an energy), so K_ba = K_ab^T: the blocks a <= b here, the rest mirrored below.
         for (int b = 0; b < n; ++b) {
           Eigen::Matrix<double, 9, 3> B;
           for (int k = 0; k < 3; ++k)
             B.col(k) = r.A.col(k) * pd.dNdX(b, 0) + r.A.col(k + 3) * pd.dNdX(b, 1) + r.A.col(k + 6) * pd.dNdX(b, 2);
-          for (int a = 0; a < n; ++a) {
+          for (int a = 0; a <= b; ++a) {
             const Eigen::Matrix<double, 3, 3> Kab = (B.topRows<3>() * pd.dNdX(a, 0) + B.middleRows<3>(3) * pd.dNdX(a, 1) +
                                                      B.bottomRows<3>() * pd.dNdX(a, 2));
             Kl.block<3, 3>(3 * a, 3 * b) += pd.dV * Kab;
           }
         }
         if (law.incompressible) {
-          const Eigen::Matrix<double, 10, 3> cdN = pd.dNdX * cof.transpose();  // row a: (Cof dN_a)^T
-          for (int a = 0; a < n; ++a)
-            for (int m = 0; m < pressures_per_element_; ++m) {
-              const Vec3 c = -psi(m) * pd.dV * cdN.row(a).transpose();
-              Kl.block<3, 1>(3 * a, 3 * n + m) += c;
-              Kl.block<1, 3>(3 * n + m, 3 * a) += c.transpose();
-            }
+          // Column 3n + m: -psi_m dV Cof dN_a in rows 3a..3a+2 (the rows of cdN laid end
+          // to end); the symmetric row is mirrored below.
+          const Eigen::Matrix<double, 10, 3, Eigen::RowMajor> cdN = pd.dNdX * cof.transpose();
+          const Eigen::Map<const Eigen::VectorXd> c(cdN.data(), 3 * n);
+          for (int m = 0; m < pressures_per_element_; ++m) Kl.col(3 * n + m).head(3 * n) -= (psi(m) * pd.dV) * c;
         }
       }
       if (element_inverted) {
         ++inverted;
         continue;
+      }
+      if (K != nullptr) {
+        for (int b = 1; b < n; ++b)
+          for (int a = 0; a < b; ++a) Kl.block<3, 3>(3 * b, 3 * a) = Kl.block<3, 3>(3 * a, 3 * b).transpose();
+        for (int m = 0; m < pressures_per_element_; ++m) Kl.row(3 * n + m).head(3 * n) = Kl.col(3 * n + m).head(3 * n).transpose();
       }
       // Scatter.
       for (int a = 0; a < n; ++a)

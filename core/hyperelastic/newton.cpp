@@ -72,7 +72,9 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
       return false;
     }
     // Backtracking: halve while the step inverts an element, gives a non-finite residual,
-    // or multiplies the merit by more than kMaxGrowth.
+    // or multiplies the merit by more than kMaxGrowth. The full step, nearly always taken,
+    // is evaluated with its tangent, which the next iteration then needs; a shorter one
+    // has its tangent made once it is accepted.
     Positions xn;
     Eigen::VectorXd pn;
     const double alpha = backtrack(s, [&](double a) {
@@ -80,7 +82,7 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
       pn = pt;
       assembler.add_increment(delta, -a, xn, pn);
       const auto t0 = Clock::now();
-      ev = residual(xn, pn, Rn, nullptr);
+      ev = residual(xn, pn, Rn, a == 1.0 ? &K : nullptr);
       rep.assembly_s += since(t0);
       return ev.finite && ev.inverted_elements == 0 && merit(assembler, Rn) < kMaxGrowth * m0;
     });
@@ -88,9 +90,13 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
     if (alpha == 0) return false;
     xt = xn;
     pt = pn;
-    const auto t0 = Clock::now();
-    ev = residual(xt, pt, R, &K);
-    rep.assembly_s += since(t0);
+    if (alpha == 1.0) {
+      R.swap(Rn);
+    } else {
+      const auto t0 = Clock::now();
+      ev = residual(xt, pt, R, &K);
+      rep.assembly_s += since(t0);
+    }
     rep.residual_history.push_back(assembler.displacement_norm(R) / fref);
     // Round-off floor: the update moved no node by more than round-off of the body's
     // size and the residual stopped falling. No iteration can do better; accept it.
@@ -157,7 +163,7 @@ bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, 
       Pn = Pt + a * dP;
       assembler.add_increment(increment, a, xn, pn);
       t0 = Clock::now();
-      ev = border.residual(xn, pn, Pn, Rn, nullptr);
+      ev = border.residual(xn, pn, Pn, Rn, a == 1.0 ? &K : nullptr);  // the full step with its tangent
       rep.assembly_s += since(t0);
       if (!ev.finite || ev.inverted_elements > 0) return false;
       try {
@@ -174,9 +180,13 @@ bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, 
     xt = xn;
     pt = pn;
     Pt = Pn;
-    t0 = Clock::now();
-    ev = border.residual(xt, pt, Pt, R, &K);
-    rep.assembly_s += since(t0);
+    if (alpha == 1.0) {
+      R.swap(Rn);
+    } else {
+      t0 = Clock::now();
+      ev = border.residual(xt, pt, Pt, R, &K);
+      rep.assembly_s += since(t0);
+    }
     rep.residual_history.push_back(assembler.displacement_norm(R) / assembler.reference_load_norm());
     const double moved = alpha * increment.head(assembler.num_free_displacements()).lpNorm<Eigen::Infinity>();
     if (moved <= kRoundOff * length && merit_of(R, gn) > 0.5 * m0) {

@@ -38,7 +38,7 @@ struct NewtonReport {
   double assembly_s = 0;              ///< Wall time in residual and tangent evaluations, s.
   double factor_s = 0;                ///< Wall time in factorisations and solves, s.
   int factorisations = 0;             ///< Tangents factorised (the others solved on a lagged factor).
-  int krylov_iterations = 0;          ///< BiCGSTAB iterations on lagged factors.
+  int krylov_iterations = 0;          ///< GMRES iterations on lagged factors.
   int equations = 0;                  ///< Unknowns of the linear systems.
   std::string message;
 };

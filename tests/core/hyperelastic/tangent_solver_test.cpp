@@ -1,4 +1,4 @@
-// TangentSolver: a lagged factor as BiCGSTAB's preconditioner (in single precision where
+// TangentSolver: a lagged factor as GMRES's preconditioner (in single precision where
 // UMFPACK's factors are copied) still solves a later, different tangent to the forcing
 // asked for: checked against a dense LU of that tangent, on a saddle-point matrix whose
 // zero pressure block makes UMFPACK pivot off the diagonal (row and column permutations)
