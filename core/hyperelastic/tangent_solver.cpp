@@ -60,37 +60,50 @@ class FloatLU {
     Long lnz = 0, unz = 0, rows = 0, cols = 0, nz_udiag = 0;
     if (umfpack_dl_get_lunz(&lnz, &unz, &rows, &cols, &nz_udiag, lu.numeric()) != UMFPACK_OK || rows != n || cols != n)
       return false;
-    std::vector<Long> Lp(static_cast<size_t>(n) + 1), Lj(static_cast<size_t>(lnz)), Up(static_cast<size_t>(n) + 1),
-        Ui(static_cast<size_t>(unz)), P(static_cast<size_t>(n)), Q(static_cast<size_t>(n));
-    std::vector<double> Lx(static_cast<size_t>(lnz)), Ux(static_cast<size_t>(unz)), Rs(static_cast<size_t>(n));
-    Long do_recip = 0;
-    if (umfpack_dl_get_numeric(Lp.data(), Lj.data(), Lx.data(), Up.data(), Ui.data(), Ux.data(), P.data(), Q.data(),
-                               nullptr, &do_recip, Rs.data(), lu.numeric()) != UMFPACK_OK)
-      return false;
+    // L, then U: UMFPACK hands each out in double with 64-bit indices (16 bytes an entry),
+    // so only one factor's copy is alive at a time (on Land problem 3 at 155,559 unknowns
+    // each is several GB).
+    std::vector<Long> P(static_cast<size_t>(n)), Q(static_cast<size_t>(n));
+    std::vector<double> Rs(static_cast<size_t>(n));
+    {
+      std::vector<Long> Lp(static_cast<size_t>(n) + 1), Lj(static_cast<size_t>(lnz));
+      std::vector<double> Lx(static_cast<size_t>(lnz));
+      Long do_recip = 0;
+      if (umfpack_dl_get_numeric(Lp.data(), Lj.data(), Lx.data(), nullptr, nullptr, nullptr, P.data(), Q.data(), nullptr,
+                                 &do_recip, Rs.data(), lu.numeric()) != UMFPACK_OK)
+        return false;
+      scale_.resize(static_cast<size_t>(n));
+      for (int i = 0; i < n; ++i)
+        scale_[static_cast<size_t>(i)] = do_recip ? Rs[static_cast<size_t>(i)] : 1.0 / Rs[static_cast<size_t>(i)];
+      // Rows of L without their unit diagonal (stored last).
+      l_.clear(n, static_cast<size_t>(lnz - n));
+      for (int i = 0; i < n; ++i) {
+        for (Long k = Lp[static_cast<size_t>(i)]; k < Lp[static_cast<size_t>(i) + 1] - 1; ++k)
+          l_.add(static_cast<int>(Lj[static_cast<size_t>(k)]), static_cast<float>(Lx[static_cast<size_t>(k)]));
+        l_.close_line();
+      }
+    }
     p_.assign(P.begin(), P.end());
     q_.assign(Q.begin(), Q.end());
-    // Rows of L without their unit diagonal (stored last); columns of U with the diagonal
-    // kept apart as its reciprocal (stored last).
-    l_.clear(n, static_cast<size_t>(lnz - n));
-    for (int i = 0; i < n; ++i) {
-      for (Long k = Lp[static_cast<size_t>(i)]; k < Lp[static_cast<size_t>(i) + 1] - 1; ++k)
-        l_.add(static_cast<int>(Lj[static_cast<size_t>(k)]), static_cast<float>(Lx[static_cast<size_t>(k)]));
-      l_.close_line();
+    {
+      std::vector<Long> Up(static_cast<size_t>(n) + 1), Ui(static_cast<size_t>(unz));
+      std::vector<double> Ux(static_cast<size_t>(unz));
+      if (umfpack_dl_get_numeric(nullptr, nullptr, nullptr, Up.data(), Ui.data(), Ux.data(), nullptr, nullptr, nullptr,
+                                 nullptr, nullptr, lu.numeric()) != UMFPACK_OK)
+        return false;
+      // Columns of U with the diagonal (stored last) kept apart as its reciprocal.
+      u_.clear(n, static_cast<size_t>(unz - n));
+      inv_diag_.resize(static_cast<size_t>(n));
+      for (int j = 0; j < n; ++j) {
+        const Long last = Up[static_cast<size_t>(j) + 1] - 1;
+        if (last < Up[static_cast<size_t>(j)] || Ui[static_cast<size_t>(last)] != j || Ux[static_cast<size_t>(last)] == 0.0)
+          return false;  // a zero pivot: UMFPACK's own solve reports it
+        for (Long k = Up[static_cast<size_t>(j)]; k < last; ++k)
+          u_.add(static_cast<int>(Ui[static_cast<size_t>(k)]), static_cast<float>(Ux[static_cast<size_t>(k)]));
+        u_.close_line();
+        inv_diag_[static_cast<size_t>(j)] = static_cast<float>(1.0 / Ux[static_cast<size_t>(last)]);
+      }
     }
-    u_.clear(n, static_cast<size_t>(unz - n));
-    inv_diag_.resize(static_cast<size_t>(n));
-    for (int j = 0; j < n; ++j) {
-      const Long last = Up[static_cast<size_t>(j) + 1] - 1;
-      if (last < Up[static_cast<size_t>(j)] || Ui[static_cast<size_t>(last)] != j || Ux[static_cast<size_t>(last)] == 0.0)
-        return false;  // a zero pivot: UMFPACK's own solve reports it
-      for (Long k = Up[static_cast<size_t>(j)]; k < last; ++k)
-        u_.add(static_cast<int>(Ui[static_cast<size_t>(k)]), static_cast<float>(Ux[static_cast<size_t>(k)]));
-      u_.close_line();
-      inv_diag_[static_cast<size_t>(j)] = static_cast<float>(1.0 / Ux[static_cast<size_t>(last)]);
-    }
-    scale_.resize(static_cast<size_t>(n));
-    for (int i = 0; i < n; ++i)
-      scale_[static_cast<size_t>(i)] = do_recip ? Rs[static_cast<size_t>(i)] : 1.0 / Rs[static_cast<size_t>(i)];
     w_.resize(static_cast<size_t>(n));
     ok_ = true;
     return true;
