@@ -128,21 +128,34 @@ Assembler::Assembler(const Problem& problem) : problem_(problem), governor_(std:
   reference_load_ = std::max({(ext + faces).head(num_free_u_).norm(), active * length * length, 1e-300});
 }
 
-// Greedy colouring: each element takes the first colour that no element sharing a node
-// with it has. Elements of one colour write disjoint equations, so they scatter without
-// atomics, and every entry of R and K is summed in colour order whatever the thread count.
+// Elements are scattered in patches of up to kPatch consecutive elements (neighbours in a
+// generated or meshed body, so one patch's writes to K stay in cache), and patches are
+// coloured greedily: each takes the first colour that no patch sharing a node with it has.
+// Patches of one colour write disjoint equations, so they scatter without atomics, and
+// every entry of R and K is summed in the same order (colour, patch, element) whatever
+// the thread count. The patch size depends on the mesh alone, never on the threads.
 void Assembler::build_colours() {
   const ElementMesh& mesh = *problem_.mesh;
+  const int ne = mesh.num_elements();
+  patch_ = std::clamp(ne / 128, 1, 32);  // at least ~128 patches to share among threads
   std::vector<std::vector<int>> node_colours(static_cast<size_t>(num_nodes_));
-  for (int e = 0; e < mesh.num_elements(); ++e) {
-    const auto& nodes = mesh.elements()[static_cast<size_t>(e)];
+  std::vector<int> patch_nodes;
+  for (int first = 0; first < ne; first += patch_) {
+    const int last = std::min(first + patch_, ne);
+    patch_nodes.clear();
+    for (int e = first; e < last; ++e) {
+      const auto& nodes = mesh.elements()[static_cast<size_t>(e)];
+      patch_nodes.insert(patch_nodes.end(), nodes.begin(), nodes.begin() + nodes_per_element_);
+    }
+    std::sort(patch_nodes.begin(), patch_nodes.end());
+    patch_nodes.erase(std::unique(patch_nodes.begin(), patch_nodes.end()), patch_nodes.end());
     std::vector<char> taken(colours_.size() + 1, 0);
-    for (int a = 0; a < nodes_per_element_; ++a)
-      for (int c : node_colours[static_cast<size_t>(nodes[static_cast<size_t>(a)])]) taken[static_cast<size_t>(c)] = 1;
+    for (int node : patch_nodes)
+      for (int c : node_colours[static_cast<size_t>(node)]) taken[static_cast<size_t>(c)] = 1;
     const int colour = static_cast<int>(std::find(taken.begin(), taken.end(), 0) - taken.begin());
     if (colour == static_cast<int>(colours_.size())) colours_.emplace_back();
-    colours_[static_cast<size_t>(colour)].push_back(e);
-    for (int a = 0; a < nodes_per_element_; ++a) node_colours[static_cast<size_t>(nodes[static_cast<size_t>(a)])].push_back(colour);
+    colours_[static_cast<size_t>(colour)].push_back(first / patch_);
+    for (int node : patch_nodes) node_colours[static_cast<size_t>(node)].push_back(colour);
   }
 }
 
@@ -224,7 +237,8 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, con
     for (const std::vector<int>& colour : colours_) {
 #pragma omp for schedule(static)
     for (int i = 0; i < static_cast<int>(colour.size()); ++i) {
-      const int e = colour[static_cast<size_t>(i)];
+    const int first = colour[static_cast<size_t>(i)] * patch_;
+    for (int e = first; e < std::min(first + patch_, ne); ++e) {
       const auto& nodes = mesh.elements()[static_cast<size_t>(e)];
       const LawParameters& law =
           problem_.region_laws[static_cast<size_t>(problem_.element_region[static_cast<size_t>(e)])];
@@ -318,6 +332,7 @@ Evaluation Assembler::evaluate(const Positions& x, const Eigen::VectorXd& p, con
           if (s < 0) continue;
           values[s] += Kl(i, j);
         }
+    }  // the patch's elements
     }  // the for's barrier: a colour is complete before the next one starts
     }
   }

@@ -128,8 +128,10 @@ class Assembler {
   Eigen::VectorXd body_force_;                   ///< rho g N_a integrated, per free equation, at lambda 1.
   std::vector<int> slots_;                       ///< Per element, local (row, col) -> value index.
   mutable SparseMatrix pattern_;
-  /// Elements by colour: no two of one colour share a node (build_colours).
+  /// Patches (of patch_ consecutive elements) by colour: no two of one colour share a
+  /// node (build_colours).
   std::vector<std::vector<int>> colours_;
+  int patch_ = 1;
   int threads_ = 0;
   Eigen::VectorXd masses_;           ///< Per node, kg.
   std::vector<int> diagonal_slot_;   ///< Per free displacement equation: its diagonal's value index.

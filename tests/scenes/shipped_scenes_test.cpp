@@ -388,10 +388,12 @@ TEST(ShippedScenes, ABeatOnTheAccurateTierEjectsAsTheRealTimeTierAtSmallStrain) 
 // A step the accurate tier cannot take whole (Newton from the predictor leaves the soft
 // Guccione law's admissible states under a strong contraction at a large step) is retried
 // in substeps instead of ending the run, and the run lands where a run at a quarter of the
-// step does (within 0.5% at the apex: both have relaxed to nearly the same state).
+// step does (within 0.5% at the apex: both have relaxed to nearly the same state). At
+// 100 kPa three steps fail whole; at 60 kPa one did, and whether it does turns on the
+// tangent's round-off (the order of the assembly's sums).
 TEST(ShippedScenes, AnAccurateStepThatFailsWholeIsTakenInSubsteps) {
   const std::vector<std::string> hard{"--set", "mesh.refine=0.5", "--set", "solver.until=0.4", "--set",
-                                      "contraction.peak_tension=60e3", "--set",
+                                      "contraction.peak_tension=100e3", "--set",
                                       "regions[0].material={law: guccione, C: 880.0, b_f: 18.48, b_t: 3.58, b_fs: 1.627, density: 1060.0}"};
   std::vector<std::string> coarse = hard, fine = hard;
   coarse.insert(coarse.end(), {"--set", "solver.dt=0.0333"});
