@@ -70,5 +70,24 @@ TEST(TangentSolver, ALaggedFactorSolvesALaterTangentToTheForcing) {
   }
 }
 
+// A factor of an unrelated matrix (same pattern, other values) does not precondition it:
+// GMRES gives up within its budget and the tangent is factorised afresh, so the answer is
+// still the exact one, not a half-converged iterate.
+TEST(TangentSolver, AFactorThatNoLongerPreconditionsIsReplaced) {
+  const int nu = 240, np = 30, n = nu + np;
+  const SparseMatrix K0 = saddle(nu, np, 0.0, 1);
+  const SparseMatrix K1 = saddle(nu, np, 0.0, 7);
+  ASSERT_EQ(K0.nonZeros(), K1.nonZeros());
+  const Eigen::VectorXd R = Eigen::VectorXd::LinSpaced(n, 1.0, -2.0);
+  TangentSolver solver;
+  Eigen::VectorXd d;
+  ASSERT_TRUE(solver.solve(K0, R, 1e-8, true, d));
+  ASSERT_TRUE(solver.solve(K1, R, 1e-8, false, d));
+  EXPECT_EQ(solver.factorisations(), 2) << "the lagged factor failed, the tangent was factorised again";
+  EXPECT_GE(solver.krylov_iterations(), TangentSolver::kMaxKrylovIterations / 2) << "GMRES was tried first";
+  const Eigen::VectorXd exact = Eigen::MatrixXd(K1).partialPivLu().solve(R);
+  EXPECT_LT((d - exact).norm(), 1e-9 * exact.norm());
+}
+
 }  // namespace
 }  // namespace fiberfem::core::hyperelastic
