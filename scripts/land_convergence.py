@@ -19,7 +19,7 @@ import tempfile
 REFERENCE = {
     "p1": {"end": 4.1688},
     "p2": {"apex_endo": -26.613, "apex_epi": -28.282},
-    "p3": {"apex_endo": -12.4, "apex_epi": -15.5},
+    "p3": {"apex_endo": -12.35, "apex_epi": -15.45},
 }
 SCENES = {"p1": "land-beam-guccione.yaml", "p2": "land-ventricle-p2-guccione.yaml", "p3": "land-ventricle-p3-guccione.yaml"}
 BEAM = ["[10, 1, 1]", "[20, 2, 2]", "[40, 4, 4]", "[80, 8, 8]"]
