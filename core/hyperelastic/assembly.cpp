@@ -128,7 +128,7 @@ Assembler::Assembler(const Problem& problem) : problem_(problem), governor_(std:
   reference_load_ = std::max({(ext + faces).head(num_free_u_).norm(), active * length * length, 1e-300});
 }
 
-// Elements are scattered in patches of up to kPatch consecutive elements (neighbours in a
+// Elements are scattered in patches of up to 32 consecutive elements (patch_) (neighbours in a
 // generated or meshed body, so one patch's writes to K stay in cache), and patches are
 // coloured greedily: each takes the first colour that no patch sharing a node with it has.
 // Patches of one colour write disjoint equations, so they scatter without atomics, and

@@ -162,7 +162,7 @@ class FloatLU {
       last_index = -2;
     }
     void add(int index, float value) {
-      if (index == last_index + 1 && run_start.size() > first_run.back())
+      if (index == last_index + 1)  // close_line resets last_index: no run crosses lines
         ++run_length.back();
       else {
         run_start.push_back(index);

@@ -3,9 +3,9 @@
 /// tangent (UMFPACK when built with it), reused while it still preconditions later tangents
 /// well. A solve first tries GMRES on the new tangent, preconditioned on the right by the
 /// last factor, to the forcing tolerance Newton asks for (on the true residual); only when
-/// that does not converge within kMaxKrylovIterations is the tangent factorised again. Near a converged state the tangent
-/// barely changes, so most iterations cost a few triangular solves instead of a
-/// factorisation.
+/// that does not converge within kMaxKrylovIterations is the tangent factorised again.
+/// Near a converged state the tangent barely changes, so most iterations cost a few
+/// triangular solves instead of a factorisation.
 
 #include "core/hyperelastic/assembly.hpp"
 
