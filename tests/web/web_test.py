@@ -154,8 +154,10 @@ def case_replay(rig: Rig, out_dir: str):
     rig.wait_js("window.fiberfem.stats.acks.find(a => a.kind === 'seek' && a.accepted)", what="seek acknowledged")
     s = wait_status(rig, lambda s: abs(s.time_s - 1.25) < 0.02)
     assert s.state == "paused", s.state
-    shown = rig.wait_js("window.fiberfem.stats.lastFrame.time_s > 1.2 && window.fiberfem.stats.lastFrame",
-                        what="the sought frame drawn")
+    # A frame published before the pause may still arrive after it: wait for the page to
+    # draw the sought one (a stale 1.30 s frame passed a "later than 1.2 s" test once).
+    shown = rig.wait_js(f"Math.abs(window.fiberfem.stats.lastFrame.time_s - {s.time_s!r}) < 1e-9 && "
+                        "window.fiberfem.stats.lastFrame", what="the sought frame drawn")
     print(f"replay paused at {s.time_s:.4f} s (frame {s.frame}); the page draws t = {shown['time_s']:.4f} s")
     assert abs(shown["time_s"] - s.time_s) < 1e-9
 
