@@ -151,6 +151,8 @@ void LvEllipsoidSpec::validate() const {
                                 ", " + str(endo_rl_m) + ") so the base cuts the cavity, got " + str(base_z_m));
   const std::pair<const char*, int> resolution[3] = {
       {"circumferential", circumferential}, {"longitudinal", longitudinal}, {"transmural", transmural}};
+  if (!(apex_grading >= 1.0 && apex_grading <= 3.0))
+    throw std::invalid_argument("lv_ellipsoid: apex_grading must be in [1, 3], got " + str(apex_grading));
   const int minimum[3] = {6, 2, 1};
   for (int i = 0; i < 3; ++i)
     if (resolution[i].second < minimum[i])
@@ -170,7 +172,7 @@ TetMesh make_lv_ellipsoid(const LvEllipsoidSpec& spec) {
   auto id = [L](int p, int t) { return p * L + t; };
 
   // Layer t of T lies on the ellipsoid with radii interpolated at t / T; ring k at the
-  // fraction k / K of that ellipsoid's apex-to-base meridian. Apex and base ring are set
+  // fraction (k / K)^apex_grading of that ellipsoid's apex-to-base meridian. Apex and base ring are set
   // exactly: (0, 0, -rl) and z = base_z, radius rs sqrt(1 - (base_z / rl)^2).
   Positions x(3, np * L);
   for (int t = 0; t < L; ++t) {
@@ -186,7 +188,7 @@ TetMesh make_lv_ellipsoid(const LvEllipsoidSpec& spec) {
         radius = rs * std::sqrt(1.0 - c * c);
         z = spec.base_z_m;
       } else {
-        const double u = meridian.u_at(static_cast<double>(k) / K);
+        const double u = meridian.u_at(std::pow(static_cast<double>(k) / K, spec.apex_grading));
         radius = rs * std::sin(u);
         z = rl * std::cos(u);
       }

@@ -51,7 +51,7 @@ core::TetMesh mesh_file(const CheckedMap& m, SceneFiles& files, MeshExtras& extr
 
 core::TetMesh lv_ellipsoid(const CheckedMap& m, double refine, MeshExtras& extras) {
   for (const char* k : {"size", "cells", "origin"})
-    if (m.has(k)) m.checks().fail(m[k], m.sub(k), "is a box key (lv_ellipsoid takes inner, outer, base_z, resolution)");
+    if (m.has(k)) m.checks().fail(m[k], m.sub(k), "is a box key (lv_ellipsoid takes inner, outer, base_z, resolution, apex_grading)");
   core::LvEllipsoidSpec lv;
   auto radii = [&](const char* key, double& rs, double& rl) {
     if (!m.has(key)) return;
@@ -62,6 +62,7 @@ core::TetMesh lv_ellipsoid(const CheckedMap& m, double refine, MeshExtras& extra
   radii("inner", lv.endo_rs_m, lv.endo_rl_m);
   radii("outer", lv.epi_rs_m, lv.epi_rl_m);
   if (m.has("base_z")) lv.base_z_m = m.number("base_z");
+  if (m.has("apex_grading")) lv.apex_grading = m.number("apex_grading", 1.0, 3.0);
   if (m.has("resolution")) {
     const CheckedMap r(m.checks(), m["resolution"], "mesh.resolution", {"circumferential", "longitudinal", "transmural"});
     if (r.has("circumferential")) lv.circumferential = r.integer("circumferential", 6, 100000);
@@ -87,7 +88,7 @@ core::TetMesh lv_ellipsoid(const CheckedMap& m, double refine, MeshExtras& extra
 
 core::TetMesh box(const CheckedMap& m, double refine) {
   const Checks& checks = m.checks();
-  for (const char* k : {"inner", "outer", "base_z", "resolution"})
+  for (const char* k : {"inner", "outer", "base_z", "resolution", "apex_grading"})
     if (m.has(k)) checks.fail(m[k], m.sub(k), "is an lv_ellipsoid key (box takes size, cells, origin)");
   core::BoxSpec spec;
   if (m.has("size")) spec.size_m = m.vec3("size");
@@ -121,7 +122,7 @@ std::string resolve(const std::string& path, const std::string& base_dir) {
 core::TetMesh read_scene_mesh(const CheckedMap& top, SceneFiles& files, double refine, MeshExtras& extras) {
   if (!top.has("mesh")) top.checks().fail(top.node(), "mesh", "missing (a generator or a file)");
   const CheckedMap m(top.checks(), top["mesh"], "mesh",
-                     {"generator", "size", "cells", "origin", "file", "scale", "inner", "outer", "base_z", "resolution", "refine", "order"});
+                     {"generator", "size", "cells", "origin", "file", "scale", "inner", "outer", "base_z", "resolution", "apex_grading", "refine", "order"});
   if (m.has("file") == m.has("generator")) m.fail("give exactly one of generator, file");
   if (m.has("file")) {
     core::TetMesh corners = mesh_file(m, files, extras);

@@ -357,6 +357,12 @@ loads:
   expect_error(replace_once(yaml, "transmural: 2", "transmural: 0"), {"test.yaml:7:", "mesh.resolution.transmural"});
   expect_error(replace_once(yaml, "rs: 0.010", "rs: 0.005"), {"test.yaml:", "mesh", "epi_rs_m"});
   expect_error(replace_once(yaml, "lv_ellipsoid", "biventricle"), {"test.yaml:3:", "mesh.generator", "available: box, lv_ellipsoid"});
+  // apex_grading reaches the generator; out of [1, 3] it is named.
+  const sc::Scene graded = sc::parse_scene(replace_once(yaml, "base_z: 0.005", "base_z: 0.005\n  apex_grading: 1.5"), "lv.yaml");
+  spec.apex_grading = 1.5;
+  EXPECT_EQ(graded.model.mesh.rest_positions(), core::make_lv_ellipsoid(spec).rest_positions());
+  EXPECT_NE(graded.model.mesh.rest_positions(), m.rest_positions());
+  expect_error(replace_once(yaml, "base_z: 0.005", "base_z: 0.005\n  apex_grading: 0.8"), {"test.yaml:7:", "mesh.apex_grading"});
 }
 
 namespace {
