@@ -79,7 +79,7 @@ struct LvEllipsoidSpec {
 /// close to the cavity's apex or top (|base_z_m| near endo_rl_m) degrade too. Grading
 /// shrinks the apex prisms' meridional spacing against their thickness (A above):
 /// apex_grading 1.5 keeps (24, 10, 2), (36, 15, 3) and (48, 20, 4) at 19 degrees, 2 takes
-/// (36, 15, 3) down to 6.
+/// (36, 15, 3) down to 6, and 1.5 with six layers, (24, 10, 6), gives 6.
 ///
 /// @throws std::invalid_argument if the spec is invalid (naming the field), or if the
 /// resolution is so anisotropic that an element would be inverted or flat (e.g. 6 nodes
