@@ -7,7 +7,7 @@ OUT/results.json and OUT/table.md and prints the table. Documented in
 docs/peer-comparison.md.
 
   scripts/peers/fenicsx/compare.py [--repeats 3] [--finest-repeats N] [--problems 1 2] [--cells 20 40 80]
-      [--resolutions 24,10,2 32,14,3 48,20,4] [--out build/peer-compare]
+      [--resolutions 24,10,2 32,14,3 48,20,4] [--apex-grading 1] [--out build/peer-compare]
 """
 import argparse
 import json
@@ -58,6 +58,8 @@ def run_fiberfem(args, problem, level, out, env):
     report = out / "fiberfem.json"
     cmd = [str(args.fiberfem), "run", str(REPO / spec["scene"]), "--threads", "1", "--set", override,
            "--report", str(report)]
+    if problem == 2:
+        cmd += ["--set", f"mesh.apex_grading={args.apex_grading}"]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL, cwd=REPO)
     process = time.perf_counter() - t0
@@ -72,7 +74,8 @@ def run_fiberfem(args, problem, level, out, env):
 
 def run_fenicsx(args, problem, level, out, env):
     spec = PROBLEMS[problem]
-    mesh_args = ["--cells", str(level)] if problem == 1 else ["--resolution", *map(str, level)]
+    mesh_args = (["--cells", str(level)] if problem == 1
+                 else ["--resolution", *map(str, level), "--apex-grading", str(args.apex_grading)])
     report = out / "fenicsx.json"
     cmd = [args.python, str(HERE / spec["script"]), *mesh_args, "--load-steps", str(spec["load_steps"]),
            "--report", str(report)]
@@ -186,6 +189,8 @@ def main():
     ap.add_argument("--python", default="/usr/bin/python3", help="the Python that imports dolfinx")
     ap.add_argument("--cells", type=int, nargs="+", help="problem 1 refinements: cells along the beam "
                                                           "(default 20 40 80)")
+    ap.add_argument("--apex-grading", type=float, default=1.0,
+                    help="problem 2: mesh.apex_grading of both codes' meshes (default 1: evenly spaced rings)")
     ap.add_argument("--resolutions", nargs="+", help="problem 2 refinements as C,L,T (default 24,10,2 "
                                                      "32,14,3 48,20,4)")
     args = ap.parse_args()

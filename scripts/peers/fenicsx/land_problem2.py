@@ -5,7 +5,7 @@ pressure on the endocardium; reports the deformed z of the inner apex (0, 0, -17
 outer apex (0, 0, -20) mm. The mesh is fiberfem's lv_ellipsoid mesh node for node, with
 its curved quadratic geometry (lv_ellipsoid.py; configs/scenes/land-ventricle-p2-guccione.yaml).
 
-  python3 land_problem2.py --resolution 24 10 2 --load-steps 10 [--report out.json]
+  python3 land_problem2.py --resolution 24 10 2 [--apex-grading 1.5] --load-steps 10 [--report out.json]
 """
 import sys
 
@@ -22,6 +22,8 @@ def add_mesh_arguments(ap):
     ap.add_argument("--resolution", type=int, nargs=3, required=True,
                     metavar=("CIRCUMFERENTIAL", "LONGITUDINAL", "TRANSMURAL"),
                     help="fiberfem's mesh.resolution of the lv_ellipsoid generator")
+    ap.add_argument("--apex-grading", type=float, default=1.0,
+                    help="fiberfem's mesh.apex_grading: ring k of K at the fraction (k/K)^G of the meridian (default 1)")
 
 
 def on_endocardium(x):
@@ -34,7 +36,7 @@ def main():
     c, l, t = args.resolution
 
     def make_mesh():
-        nodes, cells = lv.quadratic(c, l, t)
+        nodes, cells = lv.quadratic(c, l, t, args.apex_grading)
         coordinate_element = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, 2))
         domain = mesh.create_mesh(MPI.COMM_WORLD, cells, nodes, coordinate_element)
         fdim = domain.topology.dim - 1
@@ -45,7 +47,8 @@ def main():
     law = {"C": 10.0, "b_f": 1.0, "b_t": 1.0, "b_fs": 1.0}
     return land_common.run(args, make_mesh, law, full_load=10.0,
                            probes={"apex_endo": (0.0, 0.0, -lv.ENDO_RL), "apex_epi": (0.0, 0.0, -lv.EPI_RL)},
-                           mesh_description=f"lv_ellipsoid resolution {c} {l} {t}, curved 10-node tetrahedra")
+                           mesh_description=f"lv_ellipsoid resolution {c} {l} {t}, apex grading {args.apex_grading:g}, "
+                                            "curved 10-node tetrahedra")
 
 
 if __name__ == "__main__":

@@ -75,8 +75,9 @@ def rs_rl(w):
     return ENDO_RS + w * (EPI_RS - ENDO_RS), ENDO_RL + w * (EPI_RL - ENDO_RL)
 
 
-def corners(circumferential, longitudinal, transmural):
-    """Corner positions (n, 3) in mm and tetrahedra (m, 4), as make_lv_ellipsoid."""
+def corners(circumferential, longitudinal, transmural, grading=1.0):
+    """Corner positions (n, 3) in mm and tetrahedra (m, 4), as make_lv_ellipsoid (ring k of K
+    at the fraction (k / K)^grading of the meridian: mesh.apex_grading)."""
     K, T, L = longitudinal - 1, transmural, transmural + 1
     first, angle, tris = make_disk(K, circumferential)
     np_ = len(angle)
@@ -90,7 +91,7 @@ def corners(circumferential, longitudinal, transmural):
                 c = BASE_Z / rl
                 radius, z = rs * math.sqrt(1 - c * c), BASE_Z
             else:
-                u = meridian.u_at(k / K)
+                u = meridian.u_at((k / K) ** grading)
                 radius, z = rs * math.sin(u), rl * math.cos(u)
             for p in range(first[k], first[k + 1]):
                 x[p * L + t] = (radius * math.cos(angle[p]), radius * math.sin(angle[p]), z)
@@ -153,9 +154,9 @@ def edge_node(w, on_base, a, b, xa, xb):
 BASIX_TET_EDGES = ((2, 3), (1, 3), (1, 2), (0, 3), (0, 2), (0, 1))
 
 
-def quadratic(circumferential, longitudinal, transmural):
+def quadratic(circumferential, longitudinal, transmural, grading=1.0):
     """10-node tetrahedra in basix order: node positions (n, 3) mm and cells (m, 10)."""
-    x, tets = corners(circumferential, longitudinal, transmural)
+    x, tets = corners(circumferential, longitudinal, transmural, grading)
     w = [transmural_coordinate(p) for p in x]
     on_base = x[:, 2] == BASE_Z
     nodes = list(x)
