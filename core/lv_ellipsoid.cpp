@@ -149,10 +149,10 @@ void LvEllipsoidSpec::validate() const {
   if (!(base_z_m > -endo_rl_m && base_z_m < endo_rl_m))
     throw std::invalid_argument("lv_ellipsoid: base_z_m must be in (-endo_rl_m, endo_rl_m) = (" + str(-endo_rl_m) +
                                 ", " + str(endo_rl_m) + ") so the base cuts the cavity, got " + str(base_z_m));
-  const std::pair<const char*, int> resolution[3] = {
-      {"circumferential", circumferential}, {"longitudinal", longitudinal}, {"transmural", transmural}};
   if (!(apex_grading >= 1.0 && apex_grading <= 3.0))
     throw std::invalid_argument("lv_ellipsoid: apex_grading must be in [1, 3], got " + str(apex_grading));
+  const std::pair<const char*, int> resolution[3] = {
+      {"circumferential", circumferential}, {"longitudinal", longitudinal}, {"transmural", transmural}};
   const int minimum[3] = {6, 2, 1};
   for (int i = 0; i < 3; ++i)
     if (resolution[i].second < minimum[i])
@@ -172,8 +172,8 @@ TetMesh make_lv_ellipsoid(const LvEllipsoidSpec& spec) {
   auto id = [L](int p, int t) { return p * L + t; };
 
   // Layer t of T lies on the ellipsoid with radii interpolated at t / T; ring k at the
-  // fraction (k / K)^apex_grading of that ellipsoid's apex-to-base meridian. Apex and base ring are set
-  // exactly: (0, 0, -rl) and z = base_z, radius rs sqrt(1 - (base_z / rl)^2).
+  // fraction (k / K)^apex_grading of that ellipsoid's apex-to-base meridian. Apex and base
+  // ring are set exactly: (0, 0, -rl) and z = base_z, radius rs sqrt(1 - (base_z / rl)^2).
   Positions x(3, np * L);
   for (int t = 0; t < L; ++t) {
     const double w = static_cast<double>(t) / T;

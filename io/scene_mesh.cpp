@@ -49,8 +49,12 @@ core::TetMesh mesh_file(const CheckedMap& m, SceneFiles& files, MeshExtras& extr
   }
 }
 
+// Each generator's own keys: the other generator refuses them by name.
+constexpr const char* kLvEllipsoidKeys[] = {"inner", "outer", "base_z", "resolution", "apex_grading"};
+constexpr const char* kBoxKeys[] = {"size", "cells", "origin"};
+
 core::TetMesh lv_ellipsoid(const CheckedMap& m, double refine, MeshExtras& extras) {
-  for (const char* k : {"size", "cells", "origin"})
+  for (const char* k : kBoxKeys)
     if (m.has(k)) m.checks().fail(m[k], m.sub(k), "is a box key (lv_ellipsoid takes inner, outer, base_z, resolution, apex_grading)");
   core::LvEllipsoidSpec lv;
   auto radii = [&](const char* key, double& rs, double& rl) {
@@ -88,7 +92,7 @@ core::TetMesh lv_ellipsoid(const CheckedMap& m, double refine, MeshExtras& extra
 
 core::TetMesh box(const CheckedMap& m, double refine) {
   const Checks& checks = m.checks();
-  for (const char* k : {"inner", "outer", "base_z", "resolution", "apex_grading"})
+  for (const char* k : kLvEllipsoidKeys)
     if (m.has(k)) checks.fail(m[k], m.sub(k), "is an lv_ellipsoid key (box takes size, cells, origin)");
   core::BoxSpec spec;
   if (m.has("size")) spec.size_m = m.vec3("size");
