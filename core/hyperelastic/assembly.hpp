@@ -100,6 +100,8 @@ class Assembler {
   /// Threads of the element loop: N, or 0 for the engine's choice from measured evaluation
   /// times (core/thread_governor.hpp: fewer where more do not pay, or beside a busy core).
   void set_threads(int threads) { threads_ = threads; }
+  /// The threads the next element loop runs on (the set count, or the engine's choice now).
+  int threads() const { return threads_ > 0 ? threads_ : governor_.threads(); }
 
  private:
   struct PointData {

@@ -47,6 +47,14 @@ class TangentSolver {
   /// again: what restore(other.state()) gives, at no cost. `other` is left without a factor.
   void take_memory(TangentSolver& other);
 
+  /// Threads for the substitutions with a lagged factor (two at most are used; 1 by default).
+  void set_threads(int threads) { threads_ = threads; }
+
+  /// Parts of the lagged factor's substitutions that can go on threads of their own: 2
+  /// when its elimination splits into two independent halves worth it, else 1 (0: no
+  /// single-precision copy).
+  int lagged_parts() const;
+
   int factorisations() const { return factorisations_; }
   int krylov_iterations() const { return krylov_iterations_; }
   double seconds() const { return seconds_; }
@@ -58,6 +66,7 @@ class TangentSolver {
   bool keeps_state_ = false;
   SparseMatrix analysed_, factored_;  // copies (when keeps_state_): what state() hands out
   bool have_factor_ = false;
+  int threads_ = 1;
   int factorisations_ = 0;
   int krylov_iterations_ = 0;
   double seconds_ = 0;
