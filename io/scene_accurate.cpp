@@ -141,6 +141,7 @@ AccurateProblem accurate_problem(const Scene& sc) {
   if (s.quadrature) problem->quadrature_points = *s.quadrature;
   if (s.load_steps) out.newton.load_steps = *s.load_steps;
   if (s.newton_tolerance) out.newton.tolerance = *s.newton_tolerance;
+  if (s.newton_increment_tolerance) out.newton.increment_tolerance = *s.newton_increment_tolerance;
   if (s.newton_max_iterations) out.newton.max_iterations = *s.newton_max_iterations;
   if (s.newton_line_search) out.newton.line_search = *s.newton_line_search;
   if (s.threads) out.newton.threads = *s.threads;

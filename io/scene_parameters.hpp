@@ -114,6 +114,7 @@ struct SolverSpec {
   // The accurate tier's Newton solver (docs/scenes.md, solver.newton and friends).
   std::optional<int> load_steps;              ///< solver.load_steps.
   std::optional<double> newton_tolerance;     ///< solver.newton.tolerance.
+  std::optional<double> newton_increment_tolerance;  ///< solver.newton.increment_tolerance.
   std::optional<int> newton_max_iterations;   ///< solver.newton.max_iterations.
   std::optional<bool> newton_line_search;     ///< solver.newton.line_search.
   std::optional<int> quadrature;              ///< solver.quadrature: points per element.

@@ -93,8 +93,10 @@ void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec)
       checks.fail(s["quadrature"], "solver.quadrature", "must be 1, 4, 11 or 14 points per element");
   }
   if (s.has("newton")) {
-    const CheckedMap nw(checks, s["newton"], "solver.newton", {"tolerance", "max_iterations", "line_search"});
+    const CheckedMap nw(checks, s["newton"], "solver.newton",
+                        {"tolerance", "increment_tolerance", "max_iterations", "line_search"});
     if (nw.has("tolerance")) r.newton_tolerance = nw.number("tolerance", 0, 1, true);
+    if (nw.has("increment_tolerance")) r.newton_increment_tolerance = nw.number("increment_tolerance", 0, 1, true);
     if (nw.has("max_iterations")) r.newton_max_iterations = nw.integer("max_iterations", 1, 100000);
     if (nw.has("line_search")) r.newton_line_search = nw.boolean("line_search");
   }
@@ -143,6 +145,7 @@ YAML::Node write_solver(const SolverSpec& s) {
   if (s.quadrature) n["quadrature"] = *s.quadrature;
   if (s.tier) n["tier"] = name_of(*s.tier, kTiers);
   if (s.newton_tolerance) n["newton"]["tolerance"] = *s.newton_tolerance;
+  if (s.newton_increment_tolerance) n["newton"]["increment_tolerance"] = *s.newton_increment_tolerance;
   if (s.newton_max_iterations) n["newton"]["max_iterations"] = *s.newton_max_iterations;
   if (s.newton_line_search) n["newton"]["line_search"] = *s.newton_line_search;
   return n;

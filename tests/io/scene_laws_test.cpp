@@ -30,7 +30,7 @@ loads:
     - on: {plane: {axis: z, value: 0.0}}
       pressure: 4.0
       follower: true
-solver: {mode: static, load_steps: 3, quadrature: 11, newton: {tolerance: 1.0e-8, max_iterations: 12, line_search: false}}
+solver: {mode: static, load_steps: 3, quadrature: 11, newton: {tolerance: 1.0e-8, increment_tolerance: 1.0e-5, max_iterations: 12, line_search: false}}
 )";
 
 std::string with(std::string text, const std::string& from, const std::string& to) {
@@ -63,6 +63,7 @@ TEST(SceneLaws, AGuccioneBeamBecomesTheProblemItDescribes) {
   EXPECT_EQ(ap.problem->points(), 11);
   EXPECT_EQ(ap.newton.load_steps, 3);
   EXPECT_DOUBLE_EQ(ap.newton.tolerance, 1e-8);
+  EXPECT_DOUBLE_EQ(ap.newton.increment_tolerance, 1e-5);
   EXPECT_EQ(ap.newton.max_iterations, 12);
   EXPECT_FALSE(ap.newton.line_search);
   ASSERT_EQ(ap.problem->pressures.size(), 1u);
@@ -96,6 +97,7 @@ TEST(SceneLaws, TheLawIsWrittenBackAsItWasRead) {
   EXPECT_EQ(a->guccione_b_t, b->guccione_b_t);
   EXPECT_EQ(a->incompressible, b->incompressible);
   EXPECT_EQ(again.parameters.solver.newton_max_iterations, 12);
+  EXPECT_EQ(again.parameters.solver.newton_increment_tolerance, 1e-5);
 }
 
 TEST(SceneLaws, ACompressibleLawTakesADefaultBulkModulus) {
@@ -122,6 +124,7 @@ TEST(SceneLaws, BadInputNamesTheKey) {
   expect_error(with(kBeam, "quadrature: 11", "quadrature: 5"), "solver.quadrature");
   expect_error(with(kBeam, "load_steps: 3", "load_steps: 0"), "solver.load_steps");
   expect_error(with(kBeam, "tolerance: 1.0e-8", "tolerance: 2.0"), "solver.newton.tolerance");
+  expect_error(with(kBeam, "increment_tolerance: 1.0e-5", "increment_tolerance: 0"), "solver.newton.increment_tolerance");
   expect_error(with(kBeam, "line_search: false", "line_search: false, damping: 1"), "damping");
   // A second region without a law.
   const std::string two = with(kBeam, "regions:\n", "regions:\n  - name: stiff\n    select: {box: [[0, 0, 0], [0.002, 0.001, 0.001]]}\n    material: {E: 1.0e5, nu: 0.3, density: 1000.0}\n");

@@ -101,6 +101,33 @@ TEST(NewtonStatic, TheThickSphereFollowsItsClosedFormPressureStretch) {
   EXPECT_NEAR((mean_inner_stretch(s, x) - 1) / (lambda - 1), 1.0, 0.01) << "pressure " << p << " Pa";
 }
 
+// The increments before the last are solved to solver.newton.increment_tolerance only:
+// the answer is the fully converged one's (both to the final tolerance at full load), in
+// fewer iterations, and the closed form's.
+TEST(NewtonStatic, LooseIncrementsBeforeTheLastGiveTheSameAnswerInFewerIterations) {
+  const double lambda = 1.25;
+  const Sphere s = sphere(2, sphere_pressure(lambda));
+  std::vector<Positions> answers;
+  std::vector<int> iterations;
+  for (double increment_tolerance : {1e-9, 1e-3}) {
+    Positions x;
+    Eigen::VectorXd pr;
+    NewtonSettings settings;
+    settings.load_steps = 4;
+    settings.increment_tolerance = increment_tolerance;
+    const NewtonReport r = solve_static(s.problem, x, pr, settings);
+    ASSERT_TRUE(r.converged) << r.message;
+    EXPECT_LE(r.relative_residual, settings.tolerance);
+    EXPECT_NEAR((mean_inner_stretch(s, x) - 1) / (lambda - 1), 1.0, 0.01);
+    answers.push_back(x);
+    iterations.push_back(r.iterations);
+  }
+  std::printf("sphere: %d iterations with every increment to 1e-9, %d with the first three to 1e-3\n", iterations[0],
+              iterations[1]);
+  EXPECT_LT(iterations[1], iterations[0]);
+  EXPECT_LT((answers[1] - answers[0]).cwiseAbs().maxCoeff(), 1e-9 * kOuter);
+}
+
 TEST(NewtonStatic, ALoadBeyondTheLimitPointIsReportedWithTheLoadFactorReached) {
   // The closed form's pressure maximum (thick sphere inflation limit).
   double p_max = 0;
