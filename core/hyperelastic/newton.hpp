@@ -20,8 +20,10 @@ struct NewtonSettings {
   int load_steps = 10;         ///< solver.load_steps: equal increments of the load factor, >= 1. Default 10.
   double tolerance = 1e-9;     ///< solver.newton.tolerance: |R_u| / |f_ref| and the volume residual / V, in (0, 1). Default 1e-9.
   /// solver.newton.increment_tolerance: the same measure for the load increments before
-  /// the last (the larger of the two applies), in (0, 1). Default 1e-3.
-  double increment_tolerance = 1e-3;
+  /// the last (the larger of the two applies), in (0, 1). Default 1e-9 (as tolerance);
+  /// a scene whose regions are all incompressible takes kMixedIncrementTolerance.
+  double increment_tolerance = 1e-9;
+  static constexpr double kMixedIncrementTolerance = 1e-3;
   int max_iterations = 30;     ///< solver.newton.max_iterations per increment, >= 1. Default 30.
   int max_cutbacks = 10;       ///< Halvings of increments over the solve, >= 0. Default 10.
   bool line_search = true;     ///< solver.newton.line_search. Default true.

@@ -100,6 +100,16 @@ TEST(SceneLaws, TheLawIsWrittenBackAsItWasRead) {
   EXPECT_EQ(again.parameters.solver.newton_increment_tolerance, 1e-5);
 }
 
+// Without the key, the increments before the last are loose on the mixed form only.
+TEST(SceneLaws, TheIncrementToleranceDefaultsByTheVolumetricForm) {
+  const std::string unset = with(kBeam, "increment_tolerance: 1.0e-5, ", "");
+  EXPECT_DOUBLE_EQ(accurate_problem(parse_scene(unset, "test.yaml")).newton.increment_tolerance,
+                   core::hyperelastic::NewtonSettings::kMixedIncrementTolerance);
+  const AccurateProblem penalty =
+      accurate_problem(parse_scene(with(unset, "incompressible: true", "incompressible: false"), "test.yaml"));
+  EXPECT_LE(penalty.newton.increment_tolerance, penalty.newton.tolerance) << "a penalty solves every increment fully";
+}
+
 TEST(SceneLaws, ACompressibleLawTakesADefaultBulkModulus) {
   const Scene s = parse_scene(with(kBeam, "incompressible: true", "incompressible: false"), "test.yaml");
   const auto& law = *s.parameters.regions[0].material.law;
