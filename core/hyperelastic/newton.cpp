@@ -249,21 +249,24 @@ NewtonReport solve_static(const Problem& problem, Positions& x_io, Eigen::Vector
     Eigen::VectorXd pt = p;
     const auto t0 = Clock::now();
     Evaluation ev;
+    bool extrapolated = false;  // then R, K and ev are already the predictor's
     if (dlambda_last > 0) {
       const double f = (target - lambda) / dlambda_last;
       const Positions xe = x + f * dx_last;
       const Eigen::VectorXd pe = p + f * dp_last;
-      Eigen::VectorXd Re;
-      const Evaluation ee = residual(xe, pe, Re, nullptr);
+      const Evaluation ee = residual(xe, pe, R, &K);
       if (ee.finite && ee.inverted_elements == 0) {
-        ev = residual(x, p, R, nullptr);
-        if (!(ev.finite && ev.inverted_elements == 0) || merit(assembler, Re) <= kMaxPredictorGrowth * merit(assembler, R)) {
+        Eigen::VectorXd Rs;
+        const Evaluation es = residual(x, p, Rs, nullptr);
+        if (!(es.finite && es.inverted_elements == 0) || merit(assembler, R) <= kMaxPredictorGrowth * merit(assembler, Rs)) {
           xt = xe;
           pt = pe;
+          ev = ee;
+          extrapolated = true;
         }
       }
     }
-    ev = residual(xt, pt, R, &K);
+    if (!extrapolated) ev = residual(xt, pt, R, &K);
     rep.assembly_s += since(t0);
     // Only the last increment's state is the answer: the ones before it need only be near
     // enough for the next to start from (Land problem 3: 41 -> 19 Newton iterations, 3 ->
