@@ -4,6 +4,10 @@
 
 #include <unistd.h>
 
+#include <chrono>
+#include <cstring>
+#include <thread>
+
 namespace fiberfem::service {
 namespace {
 
@@ -20,7 +24,33 @@ std::string default_run_id(const std::string& scene) { return scene + "-" + host
 RunEndpoints::RunEndpoints(std::string run_id)
     : run_id_(std::move(run_id)), host_(hostname()), pp_(), topology_(pp_), state_(pp_), status_(pp_), ack_(pp_), commands_(pp_) {}
 
-RunEndpoints::~RunEndpoints() { dds_wait_for_acks(ack_.get(), DDS_SECS(1)); }
+RunEndpoints::~RunEndpoints() {
+  if (last_sender_) {
+    const auto end = std::chrono::steady_clock::now() + kLastAnswerWait;
+    // While the sender is there (its command writer still matched) and its reader unseen.
+    auto sender_there = [&] {
+      dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(commands_.get(), last_sender_writer_);
+      if (ep) dds_builtintopic_free_endpoint(ep);
+      return ep != nullptr;
+    };
+    while (!ack_reader_matched(*last_sender_) && sender_there() && std::chrono::steady_clock::now() < end)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  dds_wait_for_acks(ack_.get(), DDS_SECS(1));
+}
+
+bool RunEndpoints::ack_reader_matched(const dds_guid_t& participant) const {
+  dds_instance_handle_t handles[256];
+  const dds_return_t n = dds_get_matched_subscriptions(ack_.get(), handles, 256);
+  for (dds_return_t i = 0; i < n && i < 256; ++i) {
+    dds_builtintopic_endpoint_t* ep = dds_get_matched_subscription_data(ack_.get(), handles[i]);
+    if (!ep) continue;
+    const bool same = std::memcmp(ep->participant_key.v, participant.v, sizeof participant.v) == 0;
+    dds_builtintopic_free_endpoint(ep);
+    if (same) return true;
+  }
+  return false;
+}
 
 void RunEndpoints::publish_topology(const TopologyData& t) {
   TopologyData mine = t;
@@ -100,10 +130,15 @@ int RunEndpoints::handle_commands(const std::function<CommandReply(const std::st
                                   std::chrono::nanoseconds budget) {
   int n = 0;
   const auto t0 = std::chrono::steady_clock::now();
-  auto handle = [&](const fiberfem_Command& c, const dds_sample_info_t&) {
+  auto handle = [&](const fiberfem_Command& c, const dds_sample_info_t& info) {
     if (dds::str(c.run_id) != run_id_) return;  // another run's
     const std::string id = dds::str(c.command_id);
     ++n;
+    if (dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(commands_.get(), info.publication_handle)) {
+      last_sender_ = ep->participant_key;
+      last_sender_writer_ = info.publication_handle;
+      dds_builtintopic_free_endpoint(ep);
+    }
     // Exactly once: a command id seen before (a client's resend) gets its first answer again.
     if (const auto seen = answered_.find(id); seen != answered_.end()) {
       ++duplicates_;

@@ -33,9 +33,15 @@ class RunEndpoints {
  public:
   /// Joins the domain (CYCLONEDDS_URI). @throws dds::DdsError when DDS cannot start.
   explicit RunEndpoints(std::string run_id);
-  /// Waits up to a second for the matched readers to acknowledge the last answers (the
-  /// answer to a shutdown is written just before the service goes).
+  /// Delivers the last answer before going (the answer to a shutdown is written just
+  /// before the service exits): waits up to kLastAnswerWait for the acknowledgement writer
+  /// to know an acknowledgement reader of the participant that sent the last command
+  /// (discovery runs each way on its own: a client that has just made its reader can
+  /// see the service's writer, and send, before the service has seen the reader), then
+  /// up to a second for the matched readers to acknowledge. A sender that has gone (its
+  /// command writer no longer matched) is not waited for.
   ~RunEndpoints();
+  static constexpr std::chrono::seconds kLastAnswerWait{3};
 
   const std::string& run_id() const { return run_id_; }
   void publish_topology(const TopologyData& t);
@@ -83,6 +89,9 @@ class RunEndpoints {
   std::unordered_map<std::string, Answer> answered_;  // by command id, the last kRememberedCommands
   std::deque<std::string> answered_order_;
   long duplicates_ = 0;
+  std::optional<dds_guid_t> last_sender_;  // participant of the last command's writer
+  dds_instance_handle_t last_sender_writer_ = 0;
+  bool ack_reader_matched(const dds_guid_t& participant) const;
   void write_ack(const std::string& command_id, const std::string& client_id, const Answer& a);
 
   std::string run_id_, host_;
