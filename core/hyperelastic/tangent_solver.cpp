@@ -1,5 +1,6 @@
 #include "core/hyperelastic/tangent_solver.hpp"
 
+#include "core/blas_threads.hpp"
 #include "core/team_affinity.hpp"
 
 #include <Eigen/SparseLU>
@@ -13,7 +14,6 @@
 #include <vector>
 #include <stdexcept>
 
-#include <dlfcn.h>
 #include <omp.h>
 
 namespace fiberfem::core::hyperelastic {
@@ -522,29 +522,6 @@ bool lagged_gmres(const SparseMatrix& K, const Eigen::VectorXd& b, const Factor&
 }
 }  // namespace
 
-// OpenBLAS on `threads` threads for one call (the factorisation's dense fronts), then
-// back to the count it had: the engine keeps BLAS on one thread elsewhere, because its
-// threads spin after each call beside the engine's parallel loops
-// (core/solvers/cholesky_factor.cpp). The blocks of a front's product are split between
-// the threads whole, so the factor is the same on one thread or two (checked: Land
-// problem 2's probes equal to the last digit). Nothing without OpenBLAS.
-template <class F>
-void with_blas_threads(int threads, F&& f) {
-  using GetThreads = int (*)();
-  using SetThreads = void (*)(int);
-  const auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
-  const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-  const int before = get ? get() : 0;
-  const int wanted = std::min(threads, omp_get_num_procs());
-  if (!get || !set || wanted <= before) {
-    f();
-    return;
-  }
-  set(wanted);
-  f();
-  set(before);
-}
-
 struct TangentSolver::Factor {
   Factor();
   LU lu;
@@ -595,7 +572,11 @@ bool TangentSolver::factorise(const SparseMatrix& K) {
     factor_->analysed = true;
     if (keeps_state_) analysed_ = K;
   }
-  with_blas_threads(threads_, [&] { factor_->lu.factorize(K); });
+  // OpenBLAS on the engine's threads for the dense fronts only (elsewhere it stays on one:
+  // its threads spin after each call beside the engine's loops). The blocks of a front's
+  // product are split between the threads whole, so the factor is the same on one thread
+  // or two (checked: Land problem 2's probes equal to the last digit).
+  blas::with_threads(threads_, [&] { factor_->lu.factorize(K); });
   factor_->copy_factor(static_cast<int>(K.rows()), threads_);
   ++factorisations_;
   have_factor_ = factor_->lu.info() == Eigen::Success;

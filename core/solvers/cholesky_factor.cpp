@@ -1,6 +1,7 @@
 #include "core/solvers/cholesky_factor.hpp"
 
-#include <dlfcn.h>
+#include "core/blas_threads.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -14,11 +15,7 @@ namespace fiberfem::core::detail {
 // Only when it is not on one thread already: OpenBLAS's setter starts its threads again
 // when they have been stopped (service/app/main.cpp stops them).
 void CholeskyFactor::single_threaded_blas() {
-  using SetThreads = void (*)(int);
-  using GetThreads = int (*)();
-  const auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
-  if (get && get() == 1) return;
-  if (auto f = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) f(1);
+  if (blas::threads() != 1) blas::set_threads(1);
 }
 #endif
 // CHOLMOD's own OpenMP loops (in the supernodal factorisation) ask for teams of

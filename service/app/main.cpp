@@ -2,11 +2,10 @@
 // file. `fiberfem run SCENE.yaml` runs a scene in batch (docs/options.md); `fiberfem render`
 // draws one off-screen (docs/rendering.md).
 
+#include "core/blas_threads.hpp"
 #include "service/app/commands.hpp"
 
 #include <CLI/CLI.hpp>
-
-#include <dlfcn.h>
 
 #include <cstdlib>
 
@@ -23,10 +22,8 @@ namespace {
 void without_blas_threads() {
   if (std::getenv("OPENBLAS_NUM_THREADS") != nullptr) return;
   setenv("OPENBLAS_NUM_THREADS", "1", 1);
-  using SetThreads = void (*)(int);
-  using Shutdown = int (*)();
-  if (auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) set(1);
-  if (auto stop = reinterpret_cast<Shutdown>(dlsym(RTLD_DEFAULT, "blas_thread_shutdown_"))) stop();
+  fiberfem::core::blas::set_threads(1);
+  fiberfem::core::blas::stop_threads();
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 // the recycled projection in parts, the split-tree substitution).
 
 #include "core/amg_preconditioner.hpp"
+#include "core/blas_threads.hpp"
 #include "core/parallel.hpp"
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
@@ -163,6 +164,28 @@ TEST(Parallel, AmgHasTheSameBitsOnOneAndTwoThreads) {
   s.solver.preconditioner = core::PreconditionerKind::amg;
   s.solver.tolerance = 1e-6;
   expect_thread_count_invariant(large_beam(), s, 6);
+}
+
+// OpenBLAS opened to the engine's threads around one call goes back to its count after it,
+// also when the call throws (a factorisation that runs out of memory must not leave BLAS
+// spinning beside every later loop); and it is only ever raised, never lowered.
+TEST(Parallel, BlasThreadsAreRaisedForOneCallAndRestored) {
+  const int start = core::blas::threads();
+  if (start == 0) GTEST_SKIP() << "the BLAS linked is not OpenBLAS";
+  core::blas::set_threads(1);
+  const int wanted = std::min(2, omp_get_num_procs());
+  int inside = 0;
+  core::blas::with_threads(2, [&] { inside = core::blas::threads(); });
+  EXPECT_EQ(inside, wanted);
+  EXPECT_EQ(core::blas::threads(), 1);
+  EXPECT_THROW(core::blas::with_threads(2, [] { throw std::runtime_error("out of memory"); }), std::runtime_error);
+  EXPECT_EQ(core::blas::threads(), 1);
+  if (wanted == 2) {
+    core::blas::set_threads(2);
+    core::blas::with_threads(1, [&] { inside = core::blas::threads(); });
+    EXPECT_EQ(inside, 2) << "lowered";
+  }
+  core::blas::set_threads(start);
 }
 
 }  // namespace
