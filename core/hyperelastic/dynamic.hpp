@@ -18,6 +18,11 @@ struct DynamicSettings {
   double dt_s = 1.0 / 60.0;     ///< solver.dt: step, s, > 0.
   double mass_damping_1_s = 0;  ///< Rayleigh alpha, 1/s, >= 0 (one value for the body).
   NewtonSettings newton;        ///< tolerance, max_iterations, line_search, threads per step.
+  /// A step's Newton gives up when its merit is not below its start after this many
+  /// iterations (NewtonSettings::give_up_after; 0: never): the service's engine then takes
+  /// the step in substeps, which is cheaper than the rest of a solve that seldom converges.
+  static constexpr int kGiveUpAfter = 4;
+  int give_up_after = kGiveUpAfter;
   /// @throws std::invalid_argument naming the key.
   void validate() const;
 };
@@ -57,9 +62,9 @@ class DynamicSolver {
   /// One step to time t + dt with the loads at `loading` (their values at the step's end).
   /// A step that does not converge leaves the state unchanged and says why.
   DynamicStepReport step(const Loading& loading);
-  /// The same step without changing the state, from the guess `x` (3 x nodes; replaced by
-  /// the rest of the step's start when it is not finite or inverts an element) and `p`:
-  /// on convergence they hold the step's end.
+  /// The same step without changing the state, from the guess `x` (3 x nodes) and `p`: on
+  /// convergence they hold the step's end. The guess is replaced by the step's start where
+  /// it is not finite, inverts an element, or has the larger residual of the two.
   DynamicStepReport solve_step(const Loading& loading, Positions& x, Eigen::VectorXd& p);
   /// solve_step with unknown load magnitudes bordered onto Newton (newton_iterate_bordered):
   /// P_k is the factor of pressure load loads[k] (set in `loading`); `border`'s constraints
@@ -109,6 +114,11 @@ class DynamicSolver {
   NewtonReport totals() const;
 
  private:
+  // Whether Newton should start from the step's start x_ rather than the guess `x` whose
+  // evaluation (ev, R) is given: the guess is not finite, inverts an element, or has the
+  // larger residual merit.
+  bool start_is_better(const ResidualFn& residual, const Positions& x, const Eigen::VectorXd& p, const Evaluation& ev,
+                       const Eigen::VectorXd& R) const;
   // A solve's counters into the totals, and its report (why it failed, if it did).
   DynamicStepReport finish_solve(const NewtonReport& counters, bool converged, bool singular);
 

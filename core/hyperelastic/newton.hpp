@@ -28,6 +28,10 @@ struct NewtonSettings {
   int max_cutbacks = 10;       ///< Halvings of increments over the solve, >= 0. Default 10.
   bool line_search = true;     ///< solver.newton.line_search. Default true.
   int threads = 0;             ///< solver.threads: element-loop threads, 0 the engine's choice. Default 0.
+  /// Gives up when the merit is still not below the solve's first after this many
+  /// iterations (0: never). Not a scene key: the time steps set it (DynamicSettings), whose
+  /// failed steps are retried in substeps; the static load increments do not.
+  int give_up_after = 0;
   /// @throws std::invalid_argument naming the key.
   void validate() const;
 };
@@ -47,6 +51,10 @@ struct NewtonReport {
   int equations = 0;                  ///< Unknowns of the linear systems.
   std::string message;
 };
+
+/// Newton's measure of a residual: the force rows against the reference load plus the volume
+/// rows (the mixed form's) against the body's volume.
+double residual_merit(const Assembler& assembler, const Eigen::VectorXd& R);
 
 /// The residual (and, with K, the tangent) of the equations Newton solves at (x, p).
 using ResidualFn = std::function<Evaluation(const Positions& x, const Eigen::VectorXd& p, Eigen::VectorXd& R, SparseMatrix* K)>;
