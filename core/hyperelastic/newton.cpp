@@ -55,7 +55,8 @@ double backtrack(const NewtonSettings& s, Admissible&& admissible) {
 // iteration 0): with s.give_up_after set, Newton that has not got below where it started
 // in that many iterations. On the coupled heart (heart-circulation.yaml) such a step went
 // on to fail at the 30th iteration nearly always, refactorising at most of them; given
-// up at the 4th and retried in substeps, a beat took 3 times fewer Newton iterations.
+// up at the 4th and retried in substeps, a beat took 549 -> 315 Newton iterations and
+// 302 -> 67 factorisations.
 bool no_progress(const NewtonSettings& s, int it, double m, double first) {
   return s.give_up_after > 0 && it >= s.give_up_after && m >= first;
 }
