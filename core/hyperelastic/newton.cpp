@@ -61,6 +61,14 @@ bool no_progress(const NewtonSettings& s, int it, double m, double first) {
   return s.give_up_after > 0 && it >= s.give_up_after && m >= first;
 }
 
+// Inexact Newton's forcing term: the linear solve to a relative residual that tightens
+// with the residual keeps the convergence superlinear (Eisenstat and Walker's choice eta =
+// merit), but never tighter than where the iteration ends: from merit m a solve to
+// 0.5 tolerance / m already takes the residual below the tolerance, and asking for the
+// full eta = m there (about 1e-9) outran the lagged factor on most last iterations and made
+// them factorise the tangent afresh (Eisenstat and Walker's safeguard, as Kelley writes it).
+double forcing_term(double m, double tolerance) { return std::clamp(std::max(m, 0.5 * tolerance / m), 1e-12, 1e-2); }
+
 bool converged_at(const Assembler& a, const Eigen::VectorXd& R, double tolerance) {
   return a.displacement_norm(R) <= tolerance * a.reference_load_norm() &&
          (a.num_pressures() == 0 || R.tail(a.num_pressures()).lpNorm<1>() <= tolerance * a.volume_m3());
@@ -87,7 +95,7 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
       return false;
     }
     linear.set_threads(assembler.threads());
-    if (!linear.solve(K, R, std::clamp(m0, 1e-12, 1e-2), false, delta)) {
+    if (!linear.solve(K, R, forcing_term(m0, s.tolerance), false, delta)) {
       singular = true;
       return false;
     }
@@ -156,17 +164,18 @@ bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, 
       rep.message = "Newton made no progress in " + std::to_string(it) + " iterations";
       return false;
     }
-    const double forcing = std::clamp(residual_merit(assembler, R), 1e-12, 1e-2);
+    const double forcing = forcing_term(residual_merit(assembler, R), s.tolerance);
     linear.set_threads(assembler.threads());
     if (!linear.solve(K, R, forcing, false, delta)) {
       singular = true;
       return false;
     }
     // The responses to each bordered unknown, to the same forcing (an inexact Schur
-    // complement slows Newton less than refactorising for tighter solves).
+    // complement slows Newton less than refactorising for tighter solves), each from its
+    // value at the last iteration: the tangent and u_k move little between iterations.
     border.unit_residuals(xt, u);
     for (Eigen::Index k = 0; k < m; ++k)
-      if (!linear.solve(K, u[static_cast<size_t>(k)], forcing, false, z[static_cast<size_t>(k)])) {
+      if (!linear.solve(K, u[static_cast<size_t>(k)], forcing, false, z[static_cast<size_t>(k)], /*warm=*/it > 0)) {
         singular = true;
         return false;
       }

@@ -472,6 +472,26 @@ using LU = Eigen::SparseLU<SparseMatrix>;
 // afresh when `max_iterations` do not suffice. @return whether |K x - b| <= tol |b|.
 template <class Factor>
 bool lagged_gmres(const SparseMatrix& K, const Eigen::VectorXd& b, const Factor& M, double tol, int max_iterations,
+                  Eigen::VectorXd& x, int& iterations);
+
+// The same from the guess x (from zero where the guess is no nearer): GMRES on the guess's
+// residual to the same |K x - b| <= tol |b|, its correction added.
+template <class Factor>
+bool lagged_gmres_from(const SparseMatrix& K, const Eigen::VectorXd& b, const Factor& M, double tol, int max_iterations,
+                       Eigen::VectorXd& x, int& iterations) {
+  iterations = 0;
+  const Eigen::VectorXd r = b - K * x;
+  const double r_norm = r.norm(), b_norm = b.norm(), target = tol * b_norm;
+  if (r_norm <= target) return true;
+  if (!(r_norm < b_norm)) return lagged_gmres(K, b, M, tol, max_iterations, x, iterations);
+  Eigen::VectorXd e;
+  if (!lagged_gmres(K, r, M, target / r_norm, max_iterations, e, iterations)) return false;
+  x += e;
+  return x.allFinite();
+}
+
+template <class Factor>
+bool lagged_gmres(const SparseMatrix& K, const Eigen::VectorXd& b, const Factor& M, double tol, int max_iterations,
                   Eigen::VectorXd& x, int& iterations) {
   const Eigen::Index n = b.size();
   const int m = max_iterations;
@@ -617,19 +637,25 @@ void TangentSolver::restore(const State& state) {
   factored_ = state.factored;
 }
 
-bool TangentSolver::solve(const SparseMatrix& K, const Eigen::VectorXd& R, double forcing, bool fresh, Eigen::VectorXd& delta) {
+bool TangentSolver::solve(const SparseMatrix& K, const Eigen::VectorXd& R, double forcing, bool fresh, Eigen::VectorXd& delta,
+                          bool warm) {
   const auto t0 = std::chrono::steady_clock::now();
   bool ok = false;
   if (have_factor_ && !fresh) {
     int iterations = 0;
+    warm = warm && delta.size() == R.size() && delta.allFinite();
+    const auto gmres = [&](const auto& M) {
+      return warm ? lagged_gmres_from(K, R, M, forcing, kMaxKrylovIterations, delta, iterations)
+                  : lagged_gmres(K, R, M, forcing, kMaxKrylovIterations, delta, iterations);
+    };
 #ifdef FIBERFEM_HAVE_UMFPACK
     if (factor_->lagged.ok()) {
       factor_->lagged.set_threads(threads_);
-      ok = lagged_gmres(K, R, factor_->lagged, forcing, kMaxKrylovIterations, delta, iterations);
+      ok = gmres(factor_->lagged);
     } else
-      ok = lagged_gmres(K, R, factor_->lu, forcing, kMaxKrylovIterations, delta, iterations);
+      ok = gmres(factor_->lu);
 #else
-    ok = lagged_gmres(K, R, factor_->lu, forcing, kMaxKrylovIterations, delta, iterations);
+    ok = gmres(factor_->lu);
 #endif
     krylov_iterations_ += iterations;
   }

@@ -27,9 +27,12 @@ class TangentSolver {
   TangentSolver& operator=(const TangentSolver&) = delete;
 
   /// Solves K delta = R to relative residual `forcing` (in (0, 1); a fresh factor solves
-  /// exactly). `fresh` forces a new factorisation. @return false when the tangent is
-  /// singular (no factor) or the answer is not finite.
-  bool solve(const SparseMatrix& K, const Eigen::VectorXd& R, double forcing, bool fresh, Eigen::VectorXd& delta);
+  /// exactly). `fresh` forces a new factorisation. `warm`: delta holds a guess (of R's
+  /// size, finite) that the lagged solve corrects, to the same residual |K delta - R| <=
+  /// forcing |R| (a guess already that close costs one product). @return false when the
+  /// tangent is singular (no factor) or the answer is not finite.
+  bool solve(const SparseMatrix& K, const Eigen::VectorXd& R, double forcing, bool fresh, Eigen::VectorXd& delta,
+             bool warm = false);
 
   /// The solver's memory: the matrix its symbolic analysis was made from and the one its
   /// factor is of (0 x 0 when there is none). Restoring it gives the same factor, so the
