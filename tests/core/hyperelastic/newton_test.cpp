@@ -191,5 +191,59 @@ TEST(NewtonStatic, AFollowerPressureCantileverConvergesQuadratically) {
   EXPECT_GT(x(2, mesh->num_corner_nodes() - 1) - X(2, mesh->num_corner_nodes() - 1), 1e-3);
 }
 
+
+// A solve whose residual stays above where it started gives up after give_up_after
+// iterations (the time steps then take the step in substeps) instead of spending its whole
+// budget; 0 never gives up early; a solve that makes progress is not stopped. Newton is
+// made to fail by handing it the tangent's negative, whose directions climb the residual.
+TEST(NewtonIterate, GivesUpOnASolveThatMakesNoProgress) {
+  BoxSpec spec;
+  spec.size_m = Vec3(0.010, 0.002, 0.002);
+  spec.cells = {4, 1, 1};
+  auto mesh = std::make_shared<const ElementMesh>(make_box(spec), 2);
+  Problem p(mesh);
+  LawParameters law;
+  law.kind = LawKind::neo_hookean;
+  law.mu_pa = 5e6;  // stiff: the tip deflects by 0.03% of the length, and Newton from rest
+  law.bulk_modulus_pa = 5e7;  // converges without passing through larger residuals
+  p.region_laws = {law};
+  p.region_density_kg_m3 = {1000};
+  p.element_region.assign(static_cast<size_t>(mesh->num_elements()), 0);
+  p.gravity_m_s2 = Vec3(0, 0, -9.81);
+  p.fixed_dofs.assign(static_cast<size_t>(3 * mesh->num_nodes()), 0);
+  for (int n = 0; n < mesh->num_nodes(); ++n)
+    if (mesh->rest_positions()(0, n) < 1e-12)
+      for (int i = 0; i < 3; ++i) p.fixed_dofs[static_cast<size_t>(3 * n + i)] = 1;
+  Assembler assembler(p);
+  auto solve = [&](int give_up_after, bool climb) {
+    NewtonSettings s;
+    s.max_iterations = 12;
+    s.give_up_after = give_up_after;
+    const ResidualFn residual = [&](const Positions& x, const Eigen::VectorXd& pr, Eigen::VectorXd& R, SparseMatrix* K) {
+      const Evaluation ev = assembler.evaluate(x, pr, 1.0, R, K);
+      if (K != nullptr && climb) *K *= -1.0;
+      return ev;
+    };
+    TangentSolver linear;
+    Positions x = mesh->rest_positions();
+    Eigen::VectorXd pr = Eigen::VectorXd::Zero(assembler.num_pressures()), R;
+    SparseMatrix K;
+    Evaluation ev = residual(x, pr, R, &K);
+    NewtonReport rep;
+    bool singular = false;
+    const bool converged = newton_iterate(assembler, linear, residual, s, x, pr, R, K, ev, rep, singular);
+    return std::make_pair(converged, rep);
+  };
+  const auto [gave_up, early] = solve(4, true);
+  EXPECT_FALSE(gave_up);
+  EXPECT_EQ(early.iterations, 4);
+  EXPECT_NE(early.message.find("no progress"), std::string::npos) << early.message;
+  const auto [failed, whole] = solve(0, true);
+  EXPECT_FALSE(failed);
+  EXPECT_GT(whole.iterations, 4) << whole.message;
+  const auto [converged, fine] = solve(1, false);
+  EXPECT_TRUE(converged) << fine.message << ::testing::PrintToString(fine.residual_history);
+}
+
 }  // namespace
 }  // namespace fiberfem::core::hyperelastic

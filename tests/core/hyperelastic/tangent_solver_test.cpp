@@ -10,6 +10,7 @@
 #include <Eigen/Dense>
 #include <Eigen/SparseLU>
 
+#include <cstdio>
 #include <random>
 #include <vector>
 
@@ -69,6 +70,38 @@ TEST(TangentSolver, ALaggedFactorSolvesALaterTangentToTheForcing) {
       EXPECT_LT((d1 - exact1).norm(), 1e-6 * exact1.norm());
     }
   }
+}
+
+// A warm solve starts from the guess it is given and reaches the same residual, |K d - R|
+// <= forcing |R|: from the answer itself it needs no iteration, from the answer of a
+// nearby right-hand side (the bordered Newton's responses from one iteration to the next)
+// fewer than from zero; a guess worse than zero (or of the wrong size) is not used.
+TEST(TangentSolver, AWarmSolveStartsFromItsGuessAndReachesTheSameResidual) {
+  const int nu = 240, np = 30, n = nu + np;
+  const SparseMatrix K0 = saddle(nu, np, 0.0, 1);
+  SparseMatrix K1 = K0;
+  K1 += saddle(nu, np, 0.05, 2) - saddle(nu, np, 0.0, 2);
+  const Eigen::VectorXd R = Eigen::VectorXd::LinSpaced(n, -1.0, 2.0);
+  const Eigen::VectorXd R_near = R + 1e-3 * Eigen::VectorXd::LinSpaced(n, 1.0, 0.0);
+  const Eigen::VectorXd exact = Eigen::MatrixXd(K1).partialPivLu().solve(R);
+  const double forcing = 1e-8;
+  auto iterations = [&](Eigen::VectorXd guess, bool warm, const Eigen::VectorXd& rhs) {
+    TangentSolver solver;
+    Eigen::VectorXd d0;
+    EXPECT_TRUE(solver.solve(K0, rhs, 1e-2, true, d0));
+    EXPECT_TRUE(solver.solve(K1, rhs, forcing, false, guess, warm));
+    EXPECT_EQ(solver.factorisations(), 1);
+    EXPECT_LE((K1 * guess - rhs).norm(), 1.01 * forcing * rhs.norm());
+    return solver.krylov_iterations();
+  };
+  EXPECT_EQ(iterations(exact, true, R), 0);
+  const Eigen::VectorXd near = Eigen::MatrixXd(K1).partialPivLu().solve(R_near);
+  const int cold = iterations(Eigen::VectorXd(), false, R);
+  const int warm = iterations(near, true, R);
+  EXPECT_LT(warm, cold);
+  EXPECT_EQ(iterations(-1e3 * exact, true, R), cold) << "a guess worse than zero is not used";
+  EXPECT_EQ(iterations(Eigen::VectorXd::Ones(3), true, R), cold) << "a guess of the wrong size is not used";
+  std::printf("GMRES iterations to 1e-8: %d from zero, %d from a nearby answer\n", cold, warm);
 }
 
 // A factor of an unrelated matrix (same pattern, other values) does not precondition it:
