@@ -67,7 +67,28 @@ bool no_progress(const NewtonSettings& s, int it, double m, double first) {
 // 0.5 tolerance / m already takes the residual below the tolerance, and asking for the
 // full eta = m there (about 1e-9) outran the lagged factor on most last iterations and made
 // them factorise the tangent afresh (Eisenstat and Walker's safeguard, as Kelley writes it).
-double forcing_term(double m, double tolerance) { return std::clamp(std::max(m, 0.5 * tolerance / m), 1e-12, 1e-2); }
+// Only while it works: where the residual cannot fall to the tolerance (a stiff penalty
+// leaves a round-off floor above it: Land's beam at 500 times the shear modulus stalls at
+// 2.6e-9), the looser solve moves the nodes by more than round-off without lowering the
+// residual, so the floor's test below never holds and Newton ran on to its cut-backs. So a
+// loosened iteration whose merit does not halve turns the floor off for the rest of the
+// solve, and the next exact solve stops at the round-off floor as before.
+class Forcing {
+ public:
+  double operator()(double m, double tolerance) {
+    loosened_ = floor_ && 0.5 * tolerance / m > m;
+    m_ = m;
+    return std::clamp(floor_ ? std::max(m, 0.5 * tolerance / m) : m, 1e-12, 1e-2);
+  }
+  /// After the iteration: its merit now.
+  void after(double m) {
+    if (loosened_ && m > 0.5 * m_) floor_ = false;
+  }
+
+ private:
+  bool floor_ = true, loosened_ = false;
+  double m_ = 0;
+};
 
 bool converged_at(const Assembler& a, const Eigen::VectorXd& R, double tolerance) {
   return a.displacement_norm(R) <= tolerance * a.reference_load_norm() &&
@@ -84,6 +105,7 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
   Eigen::VectorXd Rn, delta;
   rep.residual_history.clear();
   double first = 0;
+  Forcing forcing;
   for (int it = 0; it < s.max_iterations && ev.finite && ev.inverted_elements == 0; ++it) {
     if (converged_at(assembler, R, s.tolerance)) return true;
     // Inexact Newton: the linear solve to a forcing tolerance that tightens with the
@@ -95,7 +117,7 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
       return false;
     }
     linear.set_threads(assembler.threads());
-    if (!linear.solve(K, R, forcing_term(m0, s.tolerance), false, delta)) {
+    if (!linear.solve(K, R, forcing(m0, s.tolerance), false, delta)) {
       singular = true;
       return false;
     }
@@ -126,6 +148,7 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
       rep.assembly_s += since(t0);
     }
     rep.residual_history.push_back(assembler.displacement_norm(R) / fref);
+    forcing.after(residual_merit(assembler, R));
     // Round-off floor: the update moved no node by more than round-off of the body's
     // size and the residual stopped falling. No iteration can do better; accept it.
     const double moved = alpha * delta.head(assembler.num_free_displacements()).lpNorm<Eigen::Infinity>();
@@ -154,6 +177,7 @@ bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, 
   rep.assembly_s += since(t0);
   rep.residual_history.clear();
   double first = 0;
+  Forcing force;
   for (int it = 0; it < s.max_iterations && ev.finite && ev.inverted_elements == 0; ++it) {
     border.constraints(xt, Pt, g, G, dg_dP);
     const bool border_met = (g.cwiseAbs().array() <= border.tolerance.array()).all();
@@ -164,7 +188,7 @@ bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, 
       rep.message = "Newton made no progress in " + std::to_string(it) + " iterations";
       return false;
     }
-    const double forcing = forcing_term(residual_merit(assembler, R), s.tolerance);
+    const double forcing = force(residual_merit(assembler, R), s.tolerance);
     linear.set_threads(assembler.threads());
     if (!linear.solve(K, R, forcing, false, delta)) {
       singular = true;
@@ -224,6 +248,7 @@ bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, 
       rep.assembly_s += since(t0);
     }
     rep.residual_history.push_back(assembler.displacement_norm(R) / assembler.reference_load_norm());
+    force.after(residual_merit(assembler, R));
     const double moved = alpha * increment.head(assembler.num_free_displacements()).lpNorm<Eigen::Infinity>();
     if (moved <= kRoundOff * length && merit_of(R, gn) > 0.5 * m0) {
       rep.message = "stopped at the round-off floor (relative residual " + std::to_string(rep.residual_history.back()) + ")";

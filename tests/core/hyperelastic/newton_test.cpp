@@ -192,6 +192,47 @@ TEST(NewtonStatic, AFollowerPressureCantileverConvergesQuadratically) {
 }
 
 
+// A stiff penalty leaves the residual a round-off floor above the tolerance (Land's beam
+// with a bulk modulus 500 times the shear modulus stalls at about 1e-9). Newton accepts the
+// floor where an exact solve no longer moves the nodes; the looser linear solves of its
+// last iterations must not hide that floor (they did: 2 cut-backs and 183 iterations
+// here, where 2 increments of about 25 iterations each converge).
+TEST(NewtonStatic, AStiffPenaltyConvergesAtItsRoundOffFloorWithoutCutBacks) {
+  BoxSpec spec;
+  spec.size_m = Vec3(0.010, 0.001, 0.001);
+  spec.cells = {12, 1, 1};
+  auto mesh = std::make_shared<const ElementMesh>(make_box(spec), 2);
+  Problem p(mesh);
+  LawParameters law;
+  law.kind = LawKind::guccione;
+  law.incompressible = false;
+  law.bulk_modulus_pa = 1e6;
+  p.region_laws = {law};
+  p.element_region.assign(static_cast<size_t>(mesh->num_elements()), 0);
+  PressureLoad load;
+  load.pressure_pa = 4.0;
+  const Positions& X = mesh->rest_positions();
+  for (size_t f = 0; f < mesh->boundary_faces().size(); ++f) {
+    const auto& n = mesh->boundary_faces()[f];
+    if ((X.col(n[0]) + X.col(n[1]) + X.col(n[2])).z() < 1e-12) load.faces.push_back(static_cast<int>(f));
+  }
+  p.pressures = {load};
+  p.fixed_dofs.assign(static_cast<size_t>(3 * mesh->num_nodes()), 0);
+  for (int n = 0; n < mesh->num_nodes(); ++n)
+    if (X(0, n) < 1e-12) p.fixed_dofs[static_cast<size_t>(3 * n)] = p.fixed_dofs[static_cast<size_t>(3 * n + 1)] = p.fixed_dofs[static_cast<size_t>(3 * n + 2)] = 1;
+  Positions x;
+  Eigen::VectorXd pr;
+  NewtonSettings settings;
+  settings.load_steps = 2;
+  settings.threads = 1;
+  const NewtonReport r = solve_static(p, x, pr, settings);
+  ASSERT_TRUE(r.converged) << r.message;
+  EXPECT_EQ(r.cutbacks, 0);
+  EXPECT_LE(r.iterations, 80);
+  std::printf("stiff penalty: %d Newton iterations, %d cut-backs, relative residual %.2e\n", r.iterations, r.cutbacks,
+              r.relative_residual);
+}
+
 // A solve whose residual stays above where it started gives up after give_up_after
 // iterations (the time steps then take the step in substeps) instead of spending its whole
 // budget; 0 never gives up early; a solve that makes progress is not stopped. Newton is
