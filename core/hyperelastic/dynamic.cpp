@@ -19,6 +19,7 @@ DynamicSolver::DynamicSolver(const Problem& problem, const DynamicSettings& sett
     : problem_(problem), settings_(settings), assembler_(problem), linear_(/*keeps_state=*/true) {
   settings_.validate();
   settings_.newton.give_up_after = settings_.give_up_after;
+  settings_.newton.forcing_floor = true;
   if (problem.region_density_kg_m3.empty())
     throw std::invalid_argument("dynamic: every region needs a density > 0");
   for (double rho : problem.region_density_kg_m3)

@@ -75,6 +75,7 @@ bool no_progress(const NewtonSettings& s, int it, double m, double first) {
 // solve, and the next exact solve stops at the round-off floor as before.
 class Forcing {
  public:
+  explicit Forcing(bool floor) : floor_(floor) {}
   double operator()(double m, double tolerance) {
     loosened_ = floor_ && 0.5 * tolerance / m > m;
     m_ = m;
@@ -86,7 +87,7 @@ class Forcing {
   }
 
  private:
-  bool floor_ = true, loosened_ = false;
+  bool floor_, loosened_ = false;
   double m_ = 0;
 };
 
@@ -105,7 +106,7 @@ bool newton_iterate(const Assembler& assembler, TangentSolver& linear, const Res
   Eigen::VectorXd Rn, delta;
   rep.residual_history.clear();
   double first = 0;
-  Forcing forcing;
+  Forcing forcing(s.forcing_floor);
   for (int it = 0; it < s.max_iterations && ev.finite && ev.inverted_elements == 0; ++it) {
     if (converged_at(assembler, R, s.tolerance)) return true;
     // Inexact Newton: the linear solve to a forcing tolerance that tightens with the
@@ -177,7 +178,7 @@ bool newton_iterate_bordered(const Assembler& assembler, TangentSolver& linear, 
   rep.assembly_s += since(t0);
   rep.residual_history.clear();
   double first = 0;
-  Forcing force;
+  Forcing force(s.forcing_floor);
   for (int it = 0; it < s.max_iterations && ev.finite && ev.inverted_elements == 0; ++it) {
     border.constraints(xt, Pt, g, G, dg_dP);
     const bool border_met = (g.cwiseAbs().array() <= border.tolerance.array()).all();

@@ -195,8 +195,9 @@ TEST(NewtonStatic, AFollowerPressureCantileverConvergesQuadratically) {
 // A stiff penalty leaves the residual a round-off floor above the tolerance (Land's beam
 // with a bulk modulus 500 times the shear modulus stalls at about 1e-9). Newton accepts the
 // floor where an exact solve no longer moves the nodes; the looser linear solves of its
-// last iterations must not hide that floor (they did: 2 cut-backs and 183 iterations
-// here, where 2 increments of about 25 iterations each converge).
+// last iterations (NewtonSettings::forcing_floor, the time steps' setting) must not hide
+// that floor (they did: 2 cut-backs and 183 iterations here, where 2 increments of about
+// 25 iterations each converge).
 TEST(NewtonStatic, AStiffPenaltyConvergesAtItsRoundOffFloorWithoutCutBacks) {
   BoxSpec spec;
   spec.size_m = Vec3(0.010, 0.001, 0.001);
@@ -225,6 +226,7 @@ TEST(NewtonStatic, AStiffPenaltyConvergesAtItsRoundOffFloorWithoutCutBacks) {
   NewtonSettings settings;
   settings.load_steps = 2;
   settings.threads = 1;
+  settings.forcing_floor = true;  // the time steps' setting, here where its floor is reached
   const NewtonReport r = solve_static(p, x, pr, settings);
   ASSERT_TRUE(r.converged) << r.message;
   EXPECT_EQ(r.cutbacks, 0);
