@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <set>
@@ -150,15 +151,14 @@ TEST(NewtonStatic, ALoadBeyondTheLimitPointIsReportedWithTheLoadFactorReached) {
   EXPECT_LT(r.load_factor * applied, 1.02 * p_max);
 }
 
-TEST(NewtonStatic, AFollowerPressureCantileverConvergesQuadratically) {
+// Land et al. 2015 problem 1's set-up on a box of `cells` quadratic cells: 10 x 1 x 1 mm,
+// x = 0 held, 4 Pa of follower pressure on z = 0, under `law`.
+Problem land_beam(const std::array<int, 3>& cells, const LawParameters& law) {
   BoxSpec spec;
   spec.size_m = Vec3(0.010, 0.001, 0.001);
-  spec.cells = {10, 1, 1};
+  spec.cells = cells;
   auto mesh = std::make_shared<const ElementMesh>(make_box(spec), 2);
   Problem p(mesh);
-  LawParameters law;
-  law.kind = LawKind::guccione;
-  law.incompressible = true;
   p.region_laws = {law};
   p.element_region.assign(static_cast<size_t>(mesh->num_elements()), 0);
   PressureLoad load;
@@ -172,6 +172,16 @@ TEST(NewtonStatic, AFollowerPressureCantileverConvergesQuadratically) {
   p.fixed_dofs.assign(static_cast<size_t>(3 * mesh->num_nodes()), 0);
   for (int n = 0; n < mesh->num_nodes(); ++n)
     if (X(0, n) < 1e-12) p.fixed_dofs[static_cast<size_t>(3 * n)] = p.fixed_dofs[static_cast<size_t>(3 * n + 1)] = p.fixed_dofs[static_cast<size_t>(3 * n + 2)] = 1;
+  return p;
+}
+
+TEST(NewtonStatic, AFollowerPressureCantileverConvergesQuadratically) {
+  LawParameters law;
+  law.kind = LawKind::guccione;
+  law.incompressible = true;
+  const Problem p = land_beam({10, 1, 1}, law);
+  const ElementMesh* mesh = p.mesh.get();
+  const Positions& X = mesh->rest_positions();
   Positions x;
   Eigen::VectorXd pr;
   NewtonSettings settings;
@@ -199,28 +209,11 @@ TEST(NewtonStatic, AFollowerPressureCantileverConvergesQuadratically) {
 // that floor (they did: 2 cut-backs and 183 iterations here, where 2 increments of about
 // 25 iterations each converge).
 TEST(NewtonStatic, AStiffPenaltyConvergesAtItsRoundOffFloorWithoutCutBacks) {
-  BoxSpec spec;
-  spec.size_m = Vec3(0.010, 0.001, 0.001);
-  spec.cells = {12, 1, 1};
-  auto mesh = std::make_shared<const ElementMesh>(make_box(spec), 2);
-  Problem p(mesh);
   LawParameters law;
   law.kind = LawKind::guccione;
   law.incompressible = false;
   law.bulk_modulus_pa = 1e6;
-  p.region_laws = {law};
-  p.element_region.assign(static_cast<size_t>(mesh->num_elements()), 0);
-  PressureLoad load;
-  load.pressure_pa = 4.0;
-  const Positions& X = mesh->rest_positions();
-  for (size_t f = 0; f < mesh->boundary_faces().size(); ++f) {
-    const auto& n = mesh->boundary_faces()[f];
-    if ((X.col(n[0]) + X.col(n[1]) + X.col(n[2])).z() < 1e-12) load.faces.push_back(static_cast<int>(f));
-  }
-  p.pressures = {load};
-  p.fixed_dofs.assign(static_cast<size_t>(3 * mesh->num_nodes()), 0);
-  for (int n = 0; n < mesh->num_nodes(); ++n)
-    if (X(0, n) < 1e-12) p.fixed_dofs[static_cast<size_t>(3 * n)] = p.fixed_dofs[static_cast<size_t>(3 * n + 1)] = p.fixed_dofs[static_cast<size_t>(3 * n + 2)] = 1;
+  const Problem p = land_beam({12, 1, 1}, law);
   Positions x;
   Eigen::VectorXd pr;
   NewtonSettings settings;
