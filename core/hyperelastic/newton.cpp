@@ -72,7 +72,9 @@ bool no_progress(const NewtonSettings& s, int it, double m, double first) {
 // 2.6e-9), the looser solve moves the nodes by more than round-off without lowering the
 // residual, so the floor's test below never holds and Newton ran on to its cut-backs. So a
 // loosened iteration whose merit does not halve turns the floor off for the rest of the
-// solve, and the next exact solve stops at the round-off floor as before.
+// solve, and the next exact solve stops at the round-off floor as before. The floor is on
+// only where NewtonSettings::forcing_floor asks for it (the time steps): on the static
+// load increments it cost factorisations instead of saving them.
 class Forcing {
  public:
   explicit Forcing(bool floor) : floor_(floor) {}
