@@ -25,16 +25,16 @@ RunEndpoints::RunEndpoints(std::string run_id)
     : run_id_(std::move(run_id)), host_(hostname()), pp_(), topology_(pp_), state_(pp_), status_(pp_), ack_(pp_), commands_(pp_) {}
 
 RunEndpoints::~RunEndpoints() {
-  if (last_sender_) {
-    const auto end = std::chrono::steady_clock::now() + kLastAnswerWait;
-    // While the sender is there (its command writer still matched) and its reader unseen.
-    auto sender_there = [&] {
-      dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(commands_.get(), last_sender_writer_);
-      if (ep) dds_builtintopic_free_endpoint(ep);
-      return ep != nullptr;
-    };
-    while (!ack_reader_matched(*last_sender_) && sender_there() && std::chrono::steady_clock::now() < end)
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  // While the last command's sender is there (its command writer still matched) and no
+  // ack reader of its participant is matched yet.
+  const auto end = std::chrono::steady_clock::now() + kLastAnswerWait;
+  while (last_sender_writer_ != 0 && std::chrono::steady_clock::now() < end) {
+    dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(commands_.get(), last_sender_writer_);
+    if (ep == nullptr) break;  // the sender has gone
+    const dds_guid_t participant = ep->participant_key;
+    dds_builtintopic_free_endpoint(ep);
+    if (ack_reader_matched(participant)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   dds_wait_for_acks(ack_.get(), DDS_SECS(1));
 }
@@ -134,11 +134,7 @@ int RunEndpoints::handle_commands(const std::function<CommandReply(const std::st
     if (dds::str(c.run_id) != run_id_) return;  // another run's
     const std::string id = dds::str(c.command_id);
     ++n;
-    if (dds_builtintopic_endpoint_t* ep = dds_get_matched_publication_data(commands_.get(), info.publication_handle)) {
-      last_sender_ = ep->participant_key;
-      last_sender_writer_ = info.publication_handle;
-      dds_builtintopic_free_endpoint(ep);
-    }
+    last_sender_writer_ = info.publication_handle;  // its participant is looked up at exit
     // Exactly once: a command id seen before (a client's resend) gets its first answer again.
     if (const auto seen = answered_.find(id); seen != answered_.end()) {
       ++duplicates_;

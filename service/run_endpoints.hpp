@@ -89,8 +89,7 @@ class RunEndpoints {
   std::unordered_map<std::string, Answer> answered_;  // by command id, the last kRememberedCommands
   std::deque<std::string> answered_order_;
   long duplicates_ = 0;
-  std::optional<dds_guid_t> last_sender_;  // participant of the last command's writer
-  dds_instance_handle_t last_sender_writer_ = 0;
+  dds_instance_handle_t last_sender_writer_ = 0;  // the last command's writer; 0: none yet
   bool ack_reader_matched(const dds_guid_t& participant) const;
   void write_ack(const std::string& command_id, const std::string& client_id, const Answer& a);
 
