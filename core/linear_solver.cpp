@@ -4,6 +4,7 @@
 #include "core/solvers/direct_solver.hpp"
 #include "core/solvers/pcg_solver.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -40,6 +41,12 @@ SolverSettings with_cost_refresh(SolverSettings s) {
   return s;
 }
 
+int jacobi_first_iterations(Eigen::Index rows) {
+  return std::clamp(static_cast<int>(std::lround(std::cbrt(static_cast<double>(std::max<Eigen::Index>(rows, 1))))), 12, 100);
+}
+
+double jacobi_first_allowance(double even) { return std::max(2 * even, even * even / 4); }
+
 const char* to_string(FirstFactorisation f) {
   switch (f) {
     case FirstFactorisation::automatic: return "auto";
@@ -60,6 +67,9 @@ void SolverSettings::validate() const {
     throw std::invalid_argument("solver: max_iterations must be >= 1, got " + std::to_string(max_iterations));
   if (recycled_solutions < 0 || recycled_solutions > 64)
     throw std::invalid_argument("solver: recycled_solutions must be in [0, 64], got " + std::to_string(recycled_solutions));
+  if (jacobi_first < kJacobiFirstAuto)
+    throw std::invalid_argument("solver: jacobi_first must be auto (-1), 0 (off) or a count of iterations, got " +
+                                std::to_string(jacobi_first));
   if (!(failure_residual > 0 && std::isfinite(failure_residual)))
     throw std::invalid_argument("solver: failure_residual must be > 0, got " + std::to_string(failure_residual));
   if (method == LinearSolverKind::pcg && preconditioner == PreconditionerKind::amg && !has_amg())

@@ -67,6 +67,25 @@ inline constexpr int kBesideMinRows = 20000;
 /// 900 at 50,000 tets, 1,100 at 250,000, one core each).
 inline constexpr int kBesideIterations = 1000;
 
+/// SolverSettings::jacobi_first chosen from the system.
+inline constexpr int kJacobiFirstAuto = -1;
+/// The automatic break-even of SolverSettings::jacobi_first for a system of `rows` unknowns:
+/// the cube root of the rows, within [12, 100]. A block-Jacobi iteration costs about one
+/// product with the matrix; an application of the factor one such product plus the two
+/// substitutions, whose entries grow against the matrix's as the cube root of the rows
+/// for a 3-D mesh (nested dissection), and the factorisation besides. Measured on the Vega
+/// comparison's beams (one thread, docs/performance.md): the break-even is about 17
+/// iterations at 4,700 unknowns and about 55 at 34,000; the cube roots, 17 and 32, err on
+/// the side of the factor.
+int jacobi_first_iterations(Eigen::Index rows);
+/// How far the iterations of SolverSettings::jacobi_first may run beyond the break-even
+/// `even`, summed over the solves, before the run switches to the factor: even^2 / 4 (at
+/// least 2 even), about what a factorisation costs in block-Jacobi iterations (measured
+/// about 70 at 4,700 unknowns, 900 at 34,000; the rule gives 72 and 256). It carries the
+/// first solves, which start from fewer recycled solutions and take two or three times
+/// the iterations of later ones.
+double jacobi_first_allowance(double even);
+
 /// Settings of the linear solve. Defaults are the engine's `balanced` choice.
 struct SolverSettings {
   LinearSolverKind method = LinearSolverKind::pcg;  ///< pcg | direct. Default pcg.
@@ -103,6 +122,17 @@ struct SolverSettings {
   /// With the cholesky preconditioner: when the first factor of each matrix family is
   /// made (FirstFactorisation). Default automatic.
   FirstFactorisation first_factorisation = FirstFactorisation::automatic;
+  /// With the cholesky preconditioner: solve with block Jacobi (no factorisation) for as
+  /// long as it stays cheaper than the factor would be, then switch to the factor for the
+  /// rest of the run. The value is the break-even: block-Jacobi iterations a solve may take
+  /// on average; the run switches at the first solve that would bring the iterations beyond
+  /// it, summed from the first solve (and never below 0), above jacobi_first_allowance(): a
+  /// solve is cut off there and taken again from the same guess with the factor.
+  /// kJacobiFirstAuto: chosen from the system, jacobi_first_iterations(); 0: off (the
+  /// factor from the first solve). Off where first factors are made beside the steps
+  /// (first_factorisation beside, or automatic from kBesideMinRows unknowns): block
+  /// Jacobi runs there until the factor is ready anyway. Default auto.
+  int jacobi_first = -1;
   /// @throws std::invalid_argument naming the field.
   void validate() const;
 };
@@ -158,6 +188,10 @@ struct LinearSolverState {
     double beside_left = 0;
   };
   std::vector<Factor> factors;       ///< In slot order.
+  /// SolverSettings::jacobi_first: still solving with block Jacobi (false once switched to
+  /// the factor, or when off), and the iterations summed beyond the break-even so far.
+  bool jacobi_first = false;
+  double jacobi_first_excess = 0;
 };
 
 /// The Cholesky factor a solver last used, for reports and tests.

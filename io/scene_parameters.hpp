@@ -111,6 +111,7 @@ struct SolverSpec {
   std::optional<int> threads;
   std::optional<bool> corotation;
   std::optional<core::FirstFactorisation> first_factorisation;
+  std::optional<int> jacobi_first;  ///< solver.jacobi_first: core::kJacobiFirstAuto, 0 (off) or a count.
   // The accurate tier's Newton solver (docs/scenes.md, solver.newton and friends).
   std::optional<int> load_steps;              ///< solver.load_steps.
   std::optional<double> newton_tolerance;     ///< solver.newton.tolerance.

@@ -68,7 +68,7 @@ core::RotationMethod read_rotation(const Checks& checks, const YAML::Node& n, co
 void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec) {
   const CheckedMap s(checks, node, "solver",
                      {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
-                      "max_energy_gain", "until", "recycled_solutions", "threads", "corotation", "first_factorisation",
+                      "max_energy_gain", "until", "recycled_solutions", "threads", "corotation", "first_factorisation", "jacobi_first",
                       "load_steps", "newton", "quadrature", "tier"});
   SolverSpec r = spec;
   if (s.has("threads")) r.threads = s.integer("threads", 0, 1024);
@@ -85,6 +85,10 @@ void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec)
   if (s.has("corotation")) r.corotation = s.boolean("corotation");
   if (s.has("first_factorisation"))
     r.first_factorisation = read_name(checks, s["first_factorisation"], "solver.first_factorisation", kFirstFactorisations);
+  if (s.has("jacobi_first")) {
+    const YAML::Node j = s["jacobi_first"];
+    r.jacobi_first = j.IsScalar() && j.Scalar() == "auto" ? core::kJacobiFirstAuto : s.integer("jacobi_first", 0, 100000);
+  }
   if (s.has("warm_start")) r.warm_start = s.boolean("warm_start");
   if (s.has("load_steps")) r.load_steps = s.integer("load_steps", 1, 1000000);
   if (s.has("quadrature")) {
@@ -120,6 +124,7 @@ core::SimulatorSettings solver_settings(const SolverSpec& s, core::SimulatorSett
   if (s.preconditioner) st.solver.preconditioner = *s.preconditioner;
   if (s.corotation) st.corotation = *s.corotation;
   if (s.first_factorisation) st.solver.first_factorisation = *s.first_factorisation;
+  if (s.jacobi_first) st.solver.jacobi_first = *s.jacobi_first;
   if (s.warm_start) st.solver.warm_start = *s.warm_start;
   if (s.max_energy_gain) st.max_energy_gain = *s.max_energy_gain;
   return st;
@@ -141,6 +146,12 @@ YAML::Node write_solver(const SolverSpec& s) {
   if (s.threads) n["threads"] = *s.threads;
   if (s.corotation) n["corotation"] = *s.corotation;
   if (s.first_factorisation) n["first_factorisation"] = name_of(*s.first_factorisation, kFirstFactorisations);
+  if (s.jacobi_first) {
+    if (*s.jacobi_first == core::kJacobiFirstAuto)
+      n["jacobi_first"] = "auto";
+    else
+      n["jacobi_first"] = *s.jacobi_first;
+  }
   if (s.load_steps) n["load_steps"] = *s.load_steps;
   if (s.quadrature) n["quadrature"] = *s.quadrature;
   if (s.tier) n["tier"] = name_of(*s.tier, kTiers);

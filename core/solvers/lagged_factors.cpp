@@ -60,6 +60,10 @@ void LaggedFactors::adopt_beside(std::unique_ptr<FactorSlot>& sl, SolveStats& st
 
 bool LaggedFactors::factor_beside(const SparseMatrix& A, const FactorSlot& slot) const {
   if (s_.preconditioner != PreconditionerKind::cholesky || ok(slot) || slot.beside) return false;
+  return first_factors_beside(A);
+}
+
+bool LaggedFactors::first_factors_beside(const SparseMatrix& A) const {
   return s_.first_factorisation == FirstFactorisation::beside ||
          (s_.first_factorisation == FirstFactorisation::automatic && A.rows() >= kBesideMinRows);
 }

@@ -48,6 +48,8 @@ class LaggedFactors {
   FactorSlot& select_slot(SolveStats& st);
   /// Whether the first factor of `slot` (which has none) is to be made beside the steps.
   bool factor_beside(const SparseMatrix& A, const FactorSlot& slot) const;
+  /// Whether first factors of A's size are made beside the steps (the settings' rule).
+  bool first_factors_beside(const SparseMatrix& A) const;
   /// Starts factorising a copy of A (its CSR values current) beside the steps for `slot`.
   void start_beside(const SparseMatrix& A, FactorSlot& slot) { start_beside(A, slot, warp_.current, beside_iterations(A)); }
   /// Counts a fallback solve's iterations against the slot's factor made beside; a failed

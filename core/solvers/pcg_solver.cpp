@@ -62,7 +62,7 @@ SolveStats PcgSolver::solve_same_matrix(const SparseMatrix& A, const Eigen::Vect
 
 template <class Preconditioner>
 SolveStats PcgSolver::run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
-                          const Eigen::VectorXd* Ax0) {
+                          const Eigen::VectorXd* Ax0, int max_iterations) {
   if constexpr (std::is_same_v<Preconditioner, BlockJacobiPreconditioner>) {
     if (use_blocks_)
       pre.compute_from_blocks(*system_);  // the diagonal blocks where the step left them
@@ -71,18 +71,52 @@ SolveStats PcgSolver::run(Preconditioner& pre, const SparseMatrix& A, const Eige
   } else {
     pre.compute(A);
   }
+  const int cap = max_iterations > 0 ? max_iterations : s_.max_iterations;
   return pcg_.solve(
-      A, b, x, s_.tolerance, s_.max_iterations, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { pre._solve_impl(r, z); },
-      Ax0);
+      A, b, x, s_.tolerance, cap, [&](const Eigen::VectorXd& r, Eigen::VectorXd& z) { pre._solve_impl(r, z); }, Ax0);
+}
+
+// SolverSettings::jacobi_first: block Jacobi with the iterations it may take before the
+// run's summed excess over the break-even passes the allowance; the excess counted.
+bool PcgSolver::jacobi_first_solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                   const Eigen::VectorXd* Ax0, SolveStats& cg) {
+  const double even = s_.jacobi_first > 0 ? s_.jacobi_first : jacobi_first_iterations(A.rows());
+  const int cap =
+      std::max(1, static_cast<int>(std::min<double>(s_.max_iterations, even + jacobi_first_allowance(even) - jacobi_excess_)));
+  first_guess_ = x;
+  cg = run(jacobi_pre_, A, b, x, Ax0, cap);
+  if (cg.ok) {
+    jacobi_excess_ = std::max(0.0, jacobi_excess_ + cg.iterations - even);
+    return true;
+  }
+  jacobi_first_ = false;  // the factor from here on, from the same guess
+  x = first_guess_;
+  return false;
+}
+
+SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                   const Eigen::VectorXd* Ax0) {
+  if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_pre_, A, b, x, Ax0);
+  int tried = 0;  // block-Jacobi iterations of a solve cut off (jacobi_first)
+  // Where first factors are made beside the steps, block Jacobi already runs until the
+  // factor is ready, and the factorisation must not wait for a switch: jacobi_first is off.
+  if (jacobi_first_ && lagged_.first_factors_beside(A)) jacobi_first_ = false;
+  if (jacobi_first_) {
+    SolveStats cg;
+    if (jacobi_first_solve(A, b, x, Ax0, cg)) return cg;
+    tried = cg.iterations;
+  }
+  SolveStats st = solve_factored(A, b, x, Ax0);
+  st.iterations += tried;
+  return st;
 }
 
 // With a lagged factor: the slot of this matrix family, refactorised when stale; a solve
 // that fails with an old factor refactorises and starts again from the same guess. A
 // slot's first factor may be made beside the steps, which solve with block Jacobi until
 // it takes over (FirstFactorisation::beside).
-SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
-                                   const Eigen::VectorXd* Ax0) {
-  if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_pre_, A, b, x, Ax0);
+SolveStats PcgSolver::solve_factored(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                                     const Eigen::VectorXd* Ax0) {
   SolveStats st;
   SparseSystem* sync = use_blocks_ ? system_ : nullptr;
   FactorSlot* slot = &lagged_.select_slot(st);
@@ -165,6 +199,8 @@ LinearSolverState PcgSolver::save_state() const {
   st.solver_name = name();
   recycler_.save(st);
   lagged_.save(st);
+  st.jacobi_first = jacobi_first_;
+  st.jacobi_first_excess = jacobi_excess_;
   return st;
 }
 
@@ -175,6 +211,10 @@ void PcgSolver::load_state(const LinearSolverState& st, const SparseMatrix& patt
   lagged_.check(st, pattern);
   recycler_.load(st);
   lagged_.load(st, pattern);
+  // A run saved on block Jacobi goes on with it where this solver allows it; one saved
+  // after the switch (or before jacobi_first existed: absent, false) with the factor.
+  jacobi_first_ = st.jacobi_first && s_.preconditioner == PreconditionerKind::cholesky && s_.jacobi_first != 0;
+  jacobi_excess_ = st.jacobi_first_excess;
 }
 
 }  // namespace fiberfem::core::detail

@@ -14,7 +14,9 @@ namespace fiberfem::core::detail {
 
 class PcgSolver final : public LinearSolver {
  public:
-  explicit PcgSolver(const SolverSettings& s) : s_(s), recycler_(s.recycled_solutions), lagged_(s) {
+  explicit PcgSolver(const SolverSettings& s)
+      : s_(s), recycler_(s.recycled_solutions), lagged_(s),
+        jacobi_first_(s.preconditioner == PreconditionerKind::cholesky && s.jacobi_first != 0) {
     warp_pre_.set_state(&lagged_.warp());
   }
   SolveStats solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
@@ -44,11 +46,18 @@ class PcgSolver final : public LinearSolver {
  private:
   SolveStats solve_scaled(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                           const Eigen::VectorXd* Ax0);
+  SolveStats solve_factored(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                            const Eigen::VectorXd* Ax0);
   SolveStats solve_lagged(FactorSlot& slot, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                           const Eigen::VectorXd* Ax0, SolveStats& st);
   template <class Preconditioner>
   SolveStats run(Preconditioner& pre, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
-                 const Eigen::VectorXd* Ax0);
+                 const Eigen::VectorXd* Ax0, int max_iterations = -1);
+  /// SolverSettings::jacobi_first: a solve with block Jacobi, cut off where the run's
+  /// iterations beyond the break-even would pass the allowance (jacobi_first_allowance);
+  /// false (x back at its guess) when cut off or failed, and the run goes on with the factor.
+  bool jacobi_first_solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
+                          const Eigen::VectorXd* Ax0, SolveStats& cg);
   static SolveStats failed(SolveStats st);
 
   SolverSettings s_;
@@ -59,6 +68,8 @@ class PcgSolver final : public LinearSolver {
   WarpCholeskyPreconditioner warp_pre_;
   SparseSystem* system_ = nullptr;
   bool use_blocks_ = false;
+  bool jacobi_first_ = false;     // still on block Jacobi (SolverSettings::jacobi_first)
+  double jacobi_excess_ = 0;      // its iterations beyond the break-even, summed (>= 0)
   Eigen::VectorXd scaled_b_, first_guess_;  // solve()'s b / |b| and solve_scaled()'s x0 (kept: no allocation)
 };
 

@@ -453,6 +453,8 @@ json real_time_checkpoint(const core::SimulatorCheckpoint& c, Blob& b) {
             {"history_next", c.solver.history_next},
             {"key", c.solver.key},
             {"clock", c.solver.clock},
+            {"jacobi_first", c.solver.jacobi_first},
+            {"jacobi_first_excess", c.solver.jacobi_first_excess},
             {"factors", factors}}}};
 }
 

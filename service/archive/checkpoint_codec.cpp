@@ -115,6 +115,8 @@ core::SimulatorCheckpoint real_time_checkpoint_of(const json& h, const std::vect
   c.solver.history_next = s.at("history_next");
   c.solver.key = s.at("key");
   c.solver.clock = s.at("clock");
+  c.solver.jacobi_first = s.value("jacobi_first", false);  // absent in checkpoints written before 2026-11-28
+  c.solver.jacobi_first_excess = s.value("jacobi_first_excess", 0.0);
   c.solver.history = vector_of(section(h, data, "solver.history"));
   size_t i = 0;
   for (const json& f : s.at("factors")) {

@@ -122,6 +122,8 @@ TEST(Archive, FramesCheckpointsAndCommandsReadBackAsRecorded) {
   EXPECT_TRUE(c.q[100].coeffs() == at_step_12.q[100].coeffs());
   EXPECT_TRUE(c.R[100] == at_step_12.R[100]);
   EXPECT_TRUE(c.solver.history == at_step_12.solver.history);
+  EXPECT_EQ(c.solver.jacobi_first, at_step_12.solver.jacobi_first);
+  EXPECT_EQ(c.solver.jacobi_first_excess, at_step_12.solver.jacobi_first_excess);
   ASSERT_EQ(c.solver.factors.size(), at_step_12.solver.factors.size());
   EXPECT_TRUE(c.solver.factors[0].matrix_values == at_step_12.solver.factors[0].matrix_values);
   EXPECT_EQ(c.time_s, at_step_12.time_s);

@@ -22,6 +22,7 @@ using Trace = testing::StepTrace;
 io::Scene heart(core::FirstFactorisation first, int threads) {
   io::Scene scene = io::load_scene(std::string(FIBERFEM_SOURCE_DIR) + "/configs/scenes/heart.yaml");
   scene.settings.solver.first_factorisation = first;
+  scene.settings.solver.jacobi_first = 0;  // `wait` factorises at the first solve, as `beside` starts to
   scene.settings.threads = threads;
   return scene;
 }
@@ -142,6 +143,7 @@ TEST(FirstFactorisation, WhereBlockJacobiFallsShortTheFactorTakesOverAtOnce) {
   settings.threads = 2;
   settings.solver.first_factorisation = core::FirstFactorisation::beside;
   settings.solver.max_iterations = 100;
+  settings.solver.jacobi_first = 0;  // `wait` factorises at the first solve
   const core::Model stiff = box(0.1);
   core::Simulator beside(stiff, settings);
   const core::StepReport r = beside.step();

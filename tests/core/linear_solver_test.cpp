@@ -94,6 +94,7 @@ core::SolverSettings pcg(core::PreconditionerKind p, double tol = 1e-8, int max_
   s.preconditioner = p;
   s.tolerance = tol;
   s.max_iterations = max_iterations;
+  s.jacobi_first = 0;  // the factor from the first solve: the tests below are of the factor
   return s;
 }
 
@@ -620,6 +621,7 @@ TEST(SolverSettings, ValidateNamesTheField) {
       {with([&](auto& s) { s.failure_residual = nan; }), "failure_residual"},
       {with([](auto& s) { s.recycled_solutions = -1; }), "recycled_solutions"},
       {with([](auto& s) { s.recycled_solutions = 65; }), "recycled_solutions"},
+      {with([](auto& s) { s.jacobi_first = -2; }), "jacobi_first"},
   };
   for (const auto& [s, field] : bad) {
     expect_invalid([&] { s.validate(); }, {"solver", field});
@@ -770,4 +772,94 @@ TEST(SolverSettings, AmgIsRefusedOnlyWithoutAmgcl) {
     EXPECT_NO_THROW(s.validate());
   else
     expect_invalid([&] { s.validate(); }, {"amg", "AMGCL"});
+}
+
+// SolverSettings::jacobi_first on a system whose mass dominates (a small time step: the
+// velocity system of a soft body, where block Jacobi converges in a few iterations): the
+// solves stay on block Jacobi, no factor is made, and each answer is the dense solve's to
+// the tolerance. With it off the first solve factorises.
+TEST(LinearSolver, JacobiFirstKeepsBlockJacobiWhileItIsCheaperThanAFactor) {
+  System S = make_system();
+  const core::SparseMatrix A = assemble(S.sys, S.mesh, 1e4);  // M / h^2 with h 100 times smaller
+  const Eigen::VectorXd x_ref = dense_solve(A, S.b);
+  core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-10);
+  s.jacobi_first = core::kJacobiFirstAuto;
+  s.recycled_solutions = 0;
+  auto solver = make(s, S.sys);
+  const int even = core::jacobi_first_iterations(A.rows());
+  for (int k = 0; k < 5; ++k) {
+    Eigen::VectorXd x;
+    const core::SolveStats st = solver->solve(A, S.b, x);
+    EXPECT_TRUE(st.ok);
+    EXPECT_EQ(st.factorizations, 0) << "solve " << k;
+    EXPECT_LE(st.iterations, even) << "solve " << k;
+    EXPECT_LE((x - x_ref).norm(), 1e-8 * x_ref.norm());
+  }
+  EXPECT_FALSE(solver->factor_info().factored);
+  s.jacobi_first = 0;
+  auto off = make(s, S.sys);
+  Eigen::VectorXd x;
+  EXPECT_EQ(off->solve(A, S.b, x).factorizations, 1);
+}
+
+// Where block Jacobi is slow (the stiffness dominates: a large time step) the first solve
+// is cut off after the break-even plus its allowance, taken again from the same guess
+// with the factor, and every later solve uses the factor: the answers are the bits of a
+// solver with jacobi_first off, and the first solve's iterations are the cut-off ones more.
+TEST(LinearSolver, JacobiFirstSwitchesToTheFactorWhereBlockJacobiIsSlow) {
+  System S = make_system();
+  const core::SparseMatrix A = assemble(S.sys, S.mesh, 1e-6);
+  core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-10);
+  auto off = make(s, S.sys);
+  s.jacobi_first = core::kJacobiFirstAuto;
+  auto on = make(s, S.sys);
+  const double even = core::jacobi_first_iterations(A.rows());
+  const int cut = static_cast<int>(even + core::jacobi_first_allowance(even));
+  for (int k = 0; k < 3; ++k) {
+    Eigen::VectorXd x_off, x_on;
+    const core::SolveStats a = off->solve(A, S.b, x_off);
+    const core::SolveStats b = on->solve(A, S.b, x_on);
+    EXPECT_TRUE(a.ok && b.ok);
+    EXPECT_EQ(b.factorizations, a.factorizations) << "solve " << k;
+    EXPECT_EQ(b.iterations, a.iterations + (k == 0 ? cut : 0)) << "solve " << k;
+    EXPECT_EQ(x_on, x_off) << "solve " << k;
+  }
+  EXPECT_TRUE(on->factor_info().factored);
+}
+
+// A solver restored from the state of one still on block Jacobi goes on with block Jacobi
+// and the same count towards the switch: it then switches at the same solve as the
+// original. One restored from a state saved after the switch (or before the setting
+// existed, when the field reads false) solves with the factor.
+TEST(LinearSolver, JacobiFirstStateIsRestoredWithTheSolver) {
+  System S = make_system();
+  const core::SparseMatrix soft = assemble(S.sys, S.mesh, 1e2);
+  const core::SparseMatrix stiff = assemble(S.sys, S.mesh, 1e-6);
+  core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-10);
+  s.jacobi_first = core::kJacobiFirstAuto;
+  auto original = make(s, S.sys);
+  Eigen::VectorXd x;
+  for (int k = 0; k < 3; ++k) ASSERT_EQ(original->solve(soft, S.b, x).factorizations, 0);
+  const core::LinearSolverState saved = original->save_state();
+  EXPECT_TRUE(saved.jacobi_first);
+  auto restored = make(s, S.sys);
+  restored->load_state(saved, soft);
+  for (const core::SparseMatrix* A : {&soft, &stiff, &stiff}) {
+    Eigen::VectorXd xa, xb;
+    const core::SolveStats a = original->solve(*A, S.b, xa);
+    const core::SolveStats b = restored->solve(*A, S.b, xb);
+    EXPECT_EQ(a.iterations, b.iterations);
+    EXPECT_EQ(a.factorizations, b.factorizations);
+    EXPECT_EQ(xa, xb);
+  }
+  const core::LinearSolverState after = original->save_state();
+  EXPECT_FALSE(after.jacobi_first) << "switched to the factor on the stiff matrix";
+  auto later = make(s, S.sys);
+  later->load_state(after, soft);
+  Eigen::VectorXd xa, xb;
+  const core::SolveStats a = original->solve(soft, S.b, xa);
+  const core::SolveStats b = later->solve(soft, S.b, xb);
+  EXPECT_TRUE(later->factor_info().factored);
+  EXPECT_EQ(a.iterations, b.iterations) << "the factor, not block Jacobi";
+  EXPECT_EQ(xa, xb);
 }

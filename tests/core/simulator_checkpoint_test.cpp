@@ -4,6 +4,7 @@
 // The shipped scenes are read through io (the core itself reads no files).
 
 #include "core/amg_preconditioner.hpp"
+#include "core/box_generator.hpp"
 #include "core/rotation.hpp"
 #include "core/simulator.hpp"
 #include "io/scene.hpp"
@@ -108,6 +109,42 @@ TEST(SimulatorCheckpoint, AmgResumesBitForBit) {
         s.solver.refresh_iterations = 5;
       },
       true);
+}
+
+// A soft body (a 3 m beam under gravity, its mass dominating each step's matrix) solves
+// with block Jacobi first (solver.jacobi_first, the default) and makes no factor; a
+// checkpoint taken then carries that state and the count towards the switch, and the
+// resumed run takes the same iterations to the bit. Restored as if the run had switched
+// (the state's flag false), it factorises at once: the flag is what keeps it on block Jacobi.
+TEST(SimulatorCheckpoint, ACheckpointTakenOnBlockJacobiFirstResumesBitForBit) {
+  core::CantileverSpec spec;
+  spec.box.cells = {20, 4, 4};
+  spec.box.size_m = {3.0, 0.3, 0.3};
+  const core::Model model = core::make_cantilever(spec);
+  core::SimulatorSettings settings;
+  settings.threads = 1;
+  core::Simulator whole(model, settings);
+  Trace head, tail;
+  run(whole, 6, head);
+  const core::SimulatorCheckpoint c = whole.checkpoint();
+  ASSERT_TRUE(c.solver.jacobi_first) << "the beam should still be on block Jacobi";
+  EXPECT_GT(c.solver.jacobi_first_excess, 0) << "the first solves' extra iterations are part of the state";
+  for (int f : head.factorizations) EXPECT_EQ(f, 0);
+  run(whole, 8, tail);
+  core::Simulator resumed(model, settings);
+  resumed.restore(c);
+  Trace again;
+  run(resumed, 8, again);
+  for (size_t i = 0; i < tail.x.size(); ++i) {
+    EXPECT_TRUE(again.x[i] == tail.x[i]) << "step " << 7 + i;
+    EXPECT_EQ(again.iterations[i], tail.iterations[i]) << "step " << 7 + i;
+    EXPECT_EQ(again.factorizations[i], 0) << "step " << 7 + i;
+  }
+  core::SimulatorCheckpoint switched = c;
+  switched.solver.jacobi_first = false;
+  core::Simulator factored(model, settings);
+  factored.restore(switched);
+  EXPECT_EQ(factored.step().solver_factorizations, 1);
 }
 
 TEST(SimulatorCheckpoint, PalmUnderDragResumesBitForBit) { expect_resume_is_exact("palm-drag.yaml", 23, 20); }

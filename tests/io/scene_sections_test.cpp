@@ -240,10 +240,12 @@ TEST(SceneSections, SolverRoundTripsEveryKey) {
   s.recycled_solutions = 5;
   s.threads = 3;
   s.corotation = false;
+  s.jacobi_first = 25;
   SolverSpec y;
   read_solver(checks(), write_solver(s), y);
   EXPECT_EQ(text(y), text(s));
   EXPECT_TRUE(std::isinf(*y.max_energy_gain));
+  EXPECT_EQ(solver_settings(y, {}).solver.jacobi_first, 25);
   const core::SimulatorSettings a = solver_settings(s, {}), b = solver_settings(y, {});
   EXPECT_EQ(a.dt_s, b.dt_s);
   EXPECT_EQ(a.solver.tolerance, b.solver.tolerance);
@@ -252,8 +254,31 @@ TEST(SceneSections, SolverRoundTripsEveryKey) {
   s.preconditioner = core::PreconditionerKind::block_jacobi;
   s.rotation = core::RotationMethod::polar;
   s.mode = Mode::dynamic;
+  s.jacobi_first = core::kJacobiFirstAuto;
   read_solver(checks(), write_solver(s), y);
   EXPECT_EQ(text(y), text(s));
+  EXPECT_NE(text(y).find("jacobi_first: auto"), std::string::npos) << text(y);
+}
+
+// solver.jacobi_first: `auto`, 0 (off) or a count of iterations; anything else is an error
+// naming the key.
+TEST(SceneSections, SolverJacobiFirstTakesAutoOffOrACount) {
+  for (const auto& [yaml, expected] : std::vector<std::pair<std::string, int>>{
+           {"{jacobi_first: auto}", core::kJacobiFirstAuto}, {"{jacobi_first: 0}", 0}, {"{jacobi_first: 40}", 40}}) {
+    SolverSpec y;
+    read_solver(checks(), YAML::Load(yaml), y);
+    EXPECT_EQ(solver_settings(y, {}).solver.jacobi_first, expected) << yaml;
+  }
+  EXPECT_EQ(solver_settings(SolverSpec{}, {}).solver.jacobi_first, core::kJacobiFirstAuto) << "the default";
+  for (const char* bad : {"{jacobi_first: -1}", "{jacobi_first: sometimes}", "{jacobi_first: 2.5}"}) {
+    SolverSpec y;
+    try {
+      read_solver(checks(), YAML::Load(bad), y);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("solver.jacobi_first"), std::string::npos) << e.what();
+    }
+  }
 }
 
 // A whole scene written back from its own parameters builds the same engine model.
