@@ -132,7 +132,7 @@ struct SolverSettings {
   /// factor from the first solve). Off where first factors are made beside the steps
   /// (first_factorisation beside, or automatic from kBesideMinRows unknowns): block
   /// Jacobi runs there until the factor is ready anyway. Default auto.
-  int jacobi_first = -1;
+  int jacobi_first = kJacobiFirstAuto;
   /// @throws std::invalid_argument naming the field.
   void validate() const;
 };

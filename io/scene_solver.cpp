@@ -68,8 +68,8 @@ core::RotationMethod read_rotation(const Checks& checks, const YAML::Node& n, co
 void read_solver(const Checks& checks, const YAML::Node& node, SolverSpec& spec) {
   const CheckedMap s(checks, node, "solver",
                      {"mode", "dt", "method", "tolerance", "max_iterations", "rotation", "preconditioner", "warm_start",
-                      "max_energy_gain", "until", "recycled_solutions", "threads", "corotation", "first_factorisation", "jacobi_first",
-                      "load_steps", "newton", "quadrature", "tier"});
+                      "max_energy_gain", "until", "recycled_solutions", "threads", "corotation", "first_factorisation",
+                      "jacobi_first", "load_steps", "newton", "quadrature", "tier"});
   SolverSpec r = spec;
   if (s.has("threads")) r.threads = s.integer("threads", 0, 1024);
   if (s.has("recycled_solutions")) r.recycled_solutions = s.integer("recycled_solutions", 0, 64);
