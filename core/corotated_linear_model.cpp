@@ -68,7 +68,7 @@ Mat3 CorotatedLinearModel::element_gradient(const Eigen::VectorXd& x, size_t k) 
   return F;
 }
 
-// Rotations of the elements at loop positions first .. first + n - 1 (n <= 4) from their
+// Rotations of the elements at loop positions first .. first + n - 1 (n <= 8) from their
 // F into st.R (and the warm-start st.q); returns how many are inverted (det F <= 0).
 int CorotatedLinearModel::rotate_elements(const ElementPass& pass, SimulatorState& st, int first, int n, const Mat3* F) {
   int inverted = 0;
@@ -77,13 +77,14 @@ int CorotatedLinearModel::rotate_elements(const ElementPass& pass, SimulatorStat
   if (!pass.corotation) {
     for (int l = 0; l < n; ++l) st.R[k0 + static_cast<size_t>(l)] = Mat3::Identity();
   } else if (pass.rotation == RotationMethod::polar) {
-    Eigen::Quaterniond* q[4];
-    Mat3* R[4];
+    Eigen::Quaterniond* q[ElementBatch::kWidth];
+    Mat3* R[ElementBatch::kWidth];
     for (int l = 0; l < n; ++l) {
       q[l] = &st.q[k0 + static_cast<size_t>(l)];
       R[l] = &st.R[k0 + static_cast<size_t>(l)];
     }
-    rotation_polar_batch(F, q, R, n, pass.polar_tolerance_rad);
+    for (int l0 = 0; l0 < n; l0 += 4)  // four lanes at a time (more wait for the slowest lane)
+      rotation_polar_batch(F + l0, q + l0, R + l0, std::min(4, n - l0), pass.polar_tolerance_rad);
   } else {
     for (int l = 0; l < n; ++l) st.R[k0 + static_cast<size_t>(l)] = rotation_svd(F[l]);
   }
@@ -113,7 +114,7 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
   // form (core/spencer_element.hpp: no stored 12 x 12 K^e is read).
   const bool need_rotations = !st.rotations_current;
   constexpr int W = ElementBatch::kWidth;
-  static_assert(W <= 4, "rotate_elements takes at most four elements");
+  static_assert(W <= 8, "rotate_elements takes at most eight elements");
   using Lanes = double __attribute__((vector_size(W * sizeof(double))));
   sys.assemble_batched(
       [&](const int* elems, int n, ElementBatch& batch) {

@@ -25,7 +25,11 @@ using SparseMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
 /// matrix, block k = the k-th pair in the order (0,0), (0,1), .., (0,3), (1,1), .., (3,3),
 /// entry (i, j) of a block at upper[9 k + 3 i + j][lane]; and each element's forces.
 struct ElementBatch {
-  static constexpr int kWidth = 4;
+  /// Eight: one AVX-512 vector of doubles (two AVX2 vectors elsewhere). Against four, the
+  /// element pass of the 5,663-tet TetGen beam took 0.81-0.84 ms instead of 0.92-0.96 on one
+  /// thread (docs/performance.md); the polar rotations stay four lanes wide, since every
+  /// lane waits for the slowest one's updates.
+  static constexpr int kWidth = 8;
   /// The chunk these elements belong to (SparseSystem::num_chunks()): per-chunk sums,
   /// added in chunk order afterwards, round the same on any number of threads.
   int chunk = 0;
