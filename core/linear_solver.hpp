@@ -3,6 +3,7 @@
 
 #include "core/sparse_system.hpp"
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -232,8 +233,14 @@ class LinearSolver {
   /// `solve` when uses_block_positions(). The solver reads them (only when it rebuilds its
   /// preconditioner) during the next solve, so `positions` must outlive it.
   virtual void set_block_positions(const Eigen::VectorXd& /*positions*/) {}
-  /// Current rotation of each node block (same order as the blocks); called before `solve`.
+  /// Current rotation of each node block (same order as the blocks); called before `solve`
+  /// when uses_block_rotations().
   virtual void set_block_rotations(const std::vector<Mat3>& /*rotations*/) {}
+  /// Where a solve gets the node rotations when it turns to the warp preconditioner without
+  /// having been given them (uses_block_rotations() was false before it: a PCG solve that
+  /// leaves block Jacobi for the factor, SolverSettings::jacobi_first). The callback brings
+  /// them up to date and returns them; it must stay valid while the solver is used.
+  virtual void set_block_rotation_source(std::function<const std::vector<Mat3>&()> /*source*/) {}
   /// The matrix changed by more than a step's motion (time step, material, damping):
   /// solvers that reuse a factorisation refresh it at the next solve.
   virtual void invalidate() {}

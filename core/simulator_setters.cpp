@@ -90,6 +90,11 @@ void Simulator::install_solver(const SolverSettings& s) {
   solver_ = make_linear_solver(s);
   solver_->set_blocks(sys_.node_block_starts());
   solver_->set_system(&sys_);
+  // Node rotations for a solve that turns to the warp while they were skipped (solve_free).
+  solver_->set_block_rotation_source([this]() -> const std::vector<Mat3>& {
+    elements_->update_node_rotations(st_, settings_.corotation);
+    return st_.block_R;
+  });
 }
 
 void Simulator::set_rotation_method(RotationMethod m) {

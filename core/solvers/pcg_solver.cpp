@@ -36,6 +36,7 @@ SolveStats PcgSolver::solve(const SparseMatrix& A, const Eigen::VectorXd& b_in, 
   SolveStats st = solve_scaled(A, b, x, Ax0);
   if (st.ok && s_.warm_start) recycler_.remember(x);
   x *= bn;
+  rotations_given_ = false;
   return st;
 }
 
@@ -55,7 +56,9 @@ SolveStats PcgSolver::solve_same_matrix(const SparseMatrix& A, const Eigen::Vect
   if (system_ && system_->blocks_current() && !use_blocks_) system_->sync_matrix();
   pcg_.blocks_ = use_blocks_ ? system_ : nullptr;
   x /= bn;
+  rotations_given_ = true;  // the last solve's matrix, so its rotations
   SolveStats st = solve_scaled(A, scaled_b_, x, nullptr);
+  rotations_given_ = false;
   x *= bn;
   return st;
 }
@@ -106,6 +109,10 @@ SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd&
     if (jacobi_first_solve(A, b, x, Ax0, cg)) return cg;
     tried = cg.iterations;
   }
+  // The warp needs this state's node rotations, which a caller skips while block Jacobi
+  // runs first (uses_block_rotations()).
+  if (!rotations_given_ && rotation_source_) lagged_.warp().current = rotation_source_();
+  rotations_given_ = true;
   SolveStats st = solve_factored(A, b, x, Ax0);
   st.iterations += tried;
   return st;

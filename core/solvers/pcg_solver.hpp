@@ -30,8 +30,18 @@ class PcgSolver final : public LinearSolver {
     lagged_.warp().starts = starts;
     jacobi_pre_.set_blocks(std::move(starts));
   }
-  bool uses_block_rotations() const override { return s_.preconditioner != PreconditionerKind::block_jacobi; }
-  void set_block_rotations(const std::vector<Mat3>& rotations) override { lagged_.warp().current = rotations; }
+  /// Not while block Jacobi runs first (jacobi_first): a solve that switches to the factor
+  /// takes them from the rotation source then.
+  bool uses_block_rotations() const override {
+    return s_.preconditioner != PreconditionerKind::block_jacobi && !jacobi_first_;
+  }
+  void set_block_rotations(const std::vector<Mat3>& rotations) override {
+    lagged_.warp().current = rotations;
+    rotations_given_ = true;
+  }
+  void set_block_rotation_source(std::function<const std::vector<Mat3>&()> source) override {
+    rotation_source_ = std::move(source);
+  }
   bool uses_block_positions() const override { return s_.preconditioner == PreconditionerKind::amg; }
   void set_block_positions(const Eigen::VectorXd& positions) override { lagged_.set_block_positions(positions); }
   void invalidate() override { lagged_.invalidate(); }
@@ -70,6 +80,8 @@ class PcgSolver final : public LinearSolver {
   bool use_blocks_ = false;
   bool jacobi_first_ = false;     // still on block Jacobi (SolverSettings::jacobi_first)
   double jacobi_excess_ = 0;      // its iterations beyond the break-even, summed (>= 0)
+  std::function<const std::vector<Mat3>&()> rotation_source_;
+  bool rotations_given_ = false;  // set_block_rotations since the last solve()
   Eigen::VectorXd scaled_b_, first_guess_;  // solve()'s b / |b| and solve_scaled()'s x0 (kept: no allocation)
 };
 
