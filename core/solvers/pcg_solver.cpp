@@ -41,7 +41,10 @@ SolveStats PcgSolver::solve(const SparseMatrix& A, const Eigen::VectorXd& b_in, 
 }
 
 SolveStats PcgSolver::solve_same_matrix(const SparseMatrix& A, const Eigen::VectorXd& b_in, Eigen::VectorXd& x) {
-  if (!s_.warm_start || s_.recycled_solutions == 0) return solve(A, b_in, x);
+  if (!s_.warm_start || s_.recycled_solutions == 0) {
+    rotations_given_ = true;  // the last solve's matrix, so its rotations
+    return solve(A, b_in, x);
+  }
   if (x.size() != b_in.size()) x = Eigen::VectorXd::Zero(b_in.size());
   const double bn = b_in.norm();
   if (bn == 0.0 || !std::isfinite(bn)) {

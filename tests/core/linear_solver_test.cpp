@@ -827,6 +827,56 @@ TEST(LinearSolver, JacobiFirstSwitchesToTheFactorWhereBlockJacobiIsSlow) {
   EXPECT_TRUE(on->factor_info().factored);
 }
 
+// While block Jacobi runs first the solver asks for no node rotations (the step skips
+// them); the solve that switches to the factor takes them from the rotation source, once,
+// and the factor is made at those rotations: a later solve warped from there gives the
+// bits of a solver that was handed the same rotations from the start. After the switch the
+// rotations are asked for again, and a solve given them, or one with the same matrix
+// (solve_same_matrix), does not call the source.
+TEST(LinearSolver, JacobiFirstTakesTheNodeRotationsFromTheSourceWhenItSwitches) {
+  System S = make_system();
+  const core::SparseMatrix soft = assemble(S.sys, S.mesh, 1e4);
+  const core::SparseMatrix stiff = assemble(S.sys, S.mesh, 1e-6);
+  const std::vector<int> starts = S.sys.node_block_starts();
+  const BlockRotations first = random_block_rotations(starts, S.sys.num_free(), 5);
+  const BlockRotations later = random_block_rotations(starts, S.sys.num_free(), 6);
+  core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-10);
+  s.recycled_solutions = 0;
+  auto off = make(s, S.sys);
+  s.jacobi_first = core::kJacobiFirstAuto;
+  auto on = make(s, S.sys);
+  int calls = 0;
+  on->set_block_rotation_source([&]() -> const std::vector<Mat3>& {
+    ++calls;
+    return first.Q;
+  });
+  Eigen::VectorXd x_on, x_off;
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_FALSE(on->uses_block_rotations()) << "solve " << k;
+    EXPECT_EQ(on->solve(soft, S.b, x_on).factorizations, 0);
+  }
+  EXPECT_EQ(calls, 0) << "no rotations while block Jacobi runs";
+  EXPECT_FALSE(on->uses_block_rotations());
+  EXPECT_GE(on->solve(stiff, S.b, x_on).factorizations, 1);
+  EXPECT_EQ(calls, 1) << "the switch takes the rotations once";
+  EXPECT_TRUE(on->uses_block_rotations()) << "asked for again after the switch";
+  off->set_block_rotations(first.Q);
+  ASSERT_EQ(off->solve(stiff, S.b, x_off).factorizations, 1);
+  // Both factors made at `first`; the next solve warps them to `later`.
+  on->set_block_rotations(later.Q);
+  off->set_block_rotations(later.Q);
+  Eigen::VectorXd y_on, y_off;
+  const core::SolveStats a = on->solve(stiff, S.b, y_on);
+  const core::SolveStats b = off->solve(stiff, S.b, y_off);
+  EXPECT_EQ(calls, 1) << "given rotations, the source is not called";
+  EXPECT_EQ(a.factorizations, 0);
+  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(y_on, y_off) << "the factor was made at the source's rotations";
+  Eigen::VectorXd z = y_on;
+  EXPECT_TRUE(on->solve_same_matrix(stiff, S.b, z).ok);
+  EXPECT_EQ(calls, 1) << "the same matrix keeps its rotations";
+}
+
 // A solver restored from the state of one still on block Jacobi goes on with block Jacobi
 // and the same count towards the switch: it then switches at the same solve as the
 // original. One restored from a state saved after the switch (or before the setting
