@@ -58,9 +58,13 @@ struct Result {
   int inverted_at_end = 0;
   std::vector<core::Vec3> tip_samples;  // tip displacement every 0.5 s while loaded
   std::string note;
-  /// Bounded: kinetic + elastic energy at most kEnergySlack times its bound (the energy
-  /// check lets a step gain up to 1e-3 of the state's energy, SimulatorSettings::max_energy_gain).
-  static constexpr double kEnergySlack = 1.05;
+  /// Bounded: kinetic + elastic energy at most kEnergySlack times its bound. The energy
+  /// check lets a step gain up to 1e-3 of the state's energy (SimulatorSettings::
+  /// max_energy_gain) and accepts its finest substep level whatever the gain: at a fiber
+  /// ratio of 1,000 the first two steps after the release gain 4-5% at 16 substeps (1.044
+  /// on one CPU, 1.053 on an AVX-512 one: the bits of that case follow the build's vector
+  /// width), while an unstable case exceeds its bound many times over (ratio 10,000: 2,000).
+  static constexpr double kEnergySlack = 1.10;
   bool stable(const Case& c) const {
     return finite && failed_steps == 0 && energy_ratio <= kEnergySlack && release_energy_ratio <= kEnergySlack &&
            inverted_at_end == 0 && rest_error < c.rest_tolerance;
