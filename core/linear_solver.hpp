@@ -130,9 +130,11 @@ struct SolverSettings {
   /// it, summed from the first solve (and never below 0), above jacobi_first_allowance(): a
   /// solve is cut off there and taken again from the same guess with the factor.
   /// kJacobiFirstAuto: chosen from the system, jacobi_first_iterations(); 0: off (the
-  /// factor from the first solve). Off where first factors are made beside the steps
-  /// (first_factorisation beside, or automatic from kBesideMinRows unknowns): block
-  /// Jacobi runs there until the factor is ready anyway. Default auto.
+  /// factor from the first solve). Where first factors are made beside the steps
+  /// (first_factorisation beside, or automatic from kBesideMinRows unknowns) the factor is
+  /// made there as ever, the solves meanwhile run block Jacobi uncut, and when its turn
+  /// comes block Jacobi goes on (cut off as above) if those solves stayed within the
+  /// allowance, the finished factor held for the switch. Default auto.
   int jacobi_first = kJacobiFirstAuto;
   /// @throws std::invalid_argument naming the field.
   void validate() const;

@@ -68,6 +68,12 @@ bool LaggedFactors::first_factors_beside(const SparseMatrix& A) const {
          (s_.first_factorisation == FirstFactorisation::automatic && A.rows() >= kBesideMinRows);
 }
 
+bool LaggedFactors::beside_due() const {
+  for (const auto& sl : slots_)
+    if (sl->key == key_) return sl->beside && sl->beside->left <= 0;
+  return false;
+}
+
 double LaggedFactors::beside_iterations(const SparseMatrix& A) {
   return std::min<double>(kBesideIterations, static_cast<double>(A.rows()) / 32.0);
 }

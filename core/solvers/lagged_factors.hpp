@@ -50,6 +50,9 @@ class LaggedFactors {
   bool factor_beside(const SparseMatrix& A, const FactorSlot& slot) const;
   /// Whether first factors of A's size are made beside the steps (the settings' rule).
   bool first_factors_beside(const SparseMatrix& A) const;
+  /// Whether the current family's slot has a factor made beside the steps whose turn has
+  /// come (its fallback iterations run): the next select_slot adopts it.
+  bool beside_due() const;
   /// Starts factorising a copy of A (its CSR values current) beside the steps for `slot`.
   void start_beside(const SparseMatrix& A, FactorSlot& slot) { start_beside(A, slot, warp_.current, beside_iterations(A)); }
   /// Counts a fallback solve's iterations against the slot's factor made beside; a failed

@@ -86,7 +86,7 @@ SolveStats PcgSolver::run(Preconditioner& pre, const SparseMatrix& A, const Eige
 // run's summed excess over the break-even passes the allowance; the excess counted.
 bool PcgSolver::jacobi_first_solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                                    const Eigen::VectorXd* Ax0, SolveStats& cg) {
-  const double even = s_.jacobi_first > 0 ? s_.jacobi_first : jacobi_first_iterations(A.rows());
+  const double even = jacobi_first_even(A);
   const int cap =
       std::max(1, static_cast<int>(std::min<double>(s_.max_iterations, even + jacobi_first_allowance(even) - jacobi_excess_)));
   first_guess_ = x;
@@ -104,18 +104,29 @@ SolveStats PcgSolver::solve_scaled(const SparseMatrix& A, const Eigen::VectorXd&
                                    const Eigen::VectorXd* Ax0) {
   if (s_.preconditioner == PreconditionerKind::block_jacobi) return run(jacobi_pre_, A, b, x, Ax0);
   int tried = 0;  // block-Jacobi iterations of a solve cut off (jacobi_first)
-  // Where first factors are made beside the steps, block Jacobi already runs until the
-  // factor is ready, and the factorisation must not wait for a switch: jacobi_first is off.
-  if (jacobi_first_ && lagged_.first_factors_beside(A)) jacobi_first_ = false;
+  // Where first factors are made beside the steps, the solves run block Jacobi uncut until
+  // that factor's turn (solve_factored: no switch may wait for a factorisation that has not
+  // started), their iterations beyond the break-even counted. When its turn comes, block
+  // Jacobi goes on if they stayed within the allowance, the factor held for the switch.
+  if (jacobi_first_ && lagged_.first_factors_beside(A)) {
+    if (!lagged_.beside_due()) {
+      SolveStats st = solve_factored(A, b, x, Ax0);
+      const bool on_factor = lagged_.warp().slot && LaggedFactors::ok(*lagged_.warp().slot);
+      if (on_factor || st.factorizations > 0) {
+        jacobi_first_ = false;  // block Jacobi fell short: the factor took over
+      } else if (st.ok) {
+        jacobi_excess_ = std::max(0.0, jacobi_excess_ + st.iterations - jacobi_first_even(A));
+      }
+      return st;
+    }
+    const double even = jacobi_first_even(A);
+    if (jacobi_excess_ > jacobi_first_allowance(even)) jacobi_first_ = false;
+  }
   if (jacobi_first_) {
     SolveStats cg;
     if (jacobi_first_solve(A, b, x, Ax0, cg)) return cg;
     tried = cg.iterations;
   }
-  // The warp needs this state's node rotations, which a caller skips while block Jacobi
-  // runs first (uses_block_rotations()).
-  if (!rotations_given_ && rotation_source_) lagged_.warp().current = rotation_source_();
-  rotations_given_ = true;
   SolveStats st = solve_factored(A, b, x, Ax0);
   st.iterations += tried;
   return st;
@@ -146,6 +157,7 @@ SolveStats PcgSolver::solve_factored(const SparseMatrix& A, const Eigen::VectorX
     if (defer) {
       if (cg.ok) return cg;
       x = first_guess_;  // block Jacobi fell short: the factor now, waited for
+      ensure_rotations();
       SolveStats now = solve_lagged(*slot, A, b, x, Ax0, st);
       now.iterations += cg.iterations;
       return now;
@@ -156,6 +168,7 @@ SolveStats PcgSolver::solve_factored(const SparseMatrix& A, const Eigen::VectorX
       // of this step leaves its core to the new thread, as the next steps will
       // (Simulator::step counts threads_beside()): three threads on two cores made block
       // products wait for a descheduled one (1.5 s at 250,000 tets).
+      ensure_rotations();  // the factor is made at them
       lagged_.start_beside(A, *slot);
       omp_set_num_threads(std::max(1, omp_get_max_threads() - 1));
     }
@@ -165,9 +178,21 @@ SolveStats PcgSolver::solve_factored(const SparseMatrix& A, const Eigen::VectorX
     fallback = cg.iterations;
     slot = &lagged_.select_slot(st);
   }
+  ensure_rotations();
   SolveStats cg = solve_lagged(*slot, A, b, x, Ax0, st);
   cg.iterations += fallback;
   return cg;
+}
+
+// The warp needs this state's node rotations, which a caller skips while block Jacobi
+// runs first (uses_block_rotations()): from the rotation source, once per solve.
+void PcgSolver::ensure_rotations() {
+  if (!rotations_given_ && rotation_source_) lagged_.warp().current = rotation_source_();
+  rotations_given_ = true;
+}
+
+double PcgSolver::jacobi_first_even(const SparseMatrix& A) const {
+  return s_.jacobi_first > 0 ? s_.jacobi_first : jacobi_first_iterations(A.rows());
 }
 
 SolveStats PcgSolver::solve_lagged(FactorSlot& slot, const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,

@@ -69,6 +69,10 @@ class PcgSolver final : public LinearSolver {
   bool jacobi_first_solve(const SparseMatrix& A, const Eigen::VectorXd& b, Eigen::VectorXd& x,
                           const Eigen::VectorXd* Ax0, SolveStats& cg);
   static SolveStats failed(SolveStats st);
+  /// The node rotations from the source when the caller gave none for this solve.
+  void ensure_rotations();
+  /// SolverSettings::jacobi_first's break-even for A, iterations.
+  double jacobi_first_even(const SparseMatrix& A) const;
 
   SolverSettings s_;
   Pcg pcg_;

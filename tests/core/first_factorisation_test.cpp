@@ -3,7 +3,8 @@
 // the iteration count names (never the clock), so runs on any thread count, runs whose
 // factorisation finishes early or late, and a run restored from a checkpoint taken while
 // the factor was being made all step bit for bit alike; and the result is the waited-for
-// factor's within the solver tolerance.
+// factor's within the solver tolerance. With block Jacobi first (the default) the factor
+// is held past its turn where block Jacobi has stayed cheap.
 
 #include "core/builtin_scenes.hpp"
 #include "core/simulator.hpp"
@@ -12,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <numeric>
 
 namespace fiberfem {
@@ -155,6 +157,88 @@ TEST(FirstFactorisation, WhereBlockJacobiFallsShortTheFactorTakesOverAtOnce) {
   const Eigen::VectorXd a = beside.positions().reshaped(), b = wait.positions().reshaped();
   const Eigen::VectorXd x0 = stiff.mesh.rest_positions().reshaped();
   EXPECT_LT((a - b).norm(), 1e-5 * (b - x0).norm());
+}
+
+// Block Jacobi first (SolverSettings::jacobi_first, the default) with the first factor made
+// beside the steps: the solves run block Jacobi until the factor's turn as without it;
+// where they stayed within the allowance (a 2 m box: 20 to 44 iterations a step against
+// a break-even of 29), block Jacobi goes on past the turn and the factor is never used;
+// where they did not (a 1 m box: 45 to 94), the factor takes over at its turn, as it does
+// with jacobi_first off. The energy check is off: its substeps are matrix families of
+// their own, each with its own first factor.
+core::SimulatorSettings box_settings(int jacobi_first) {
+  core::SimulatorSettings settings;
+  settings.threads = 2;
+  settings.max_energy_gain = std::numeric_limits<double>::infinity();
+  settings.solver.first_factorisation = core::FirstFactorisation::beside;
+  settings.solver.jacobi_first = jacobi_first;
+  return settings;
+}
+
+Trace box_steps(double length, int jacobi_first, int n) {
+  core::Simulator sim(box(length), box_settings(jacobi_first));
+  Trace t;
+  testing::record_steps(sim, n, t);
+  return t;
+}
+
+TEST(FirstFactorisation, WithBlockJacobiFirstTheFactorIsHeldWhereBlockJacobiStaysCheap) {
+  const int n = 45;
+  const Trace first = box_steps(2.0, core::kJacobiFirstAuto, n);
+  const Trace off = box_steps(2.0, 0, n);
+  const int rows = core::Simulator(box(2.0), box_settings(0)).system().num_free();
+  const size_t k = expected_takeover(off, rows);
+  ASSERT_LT(k + 5, static_cast<size_t>(n)) << "the factor's turn should come within the run";
+  EXPECT_EQ(off.factorizations[k], 1) << "with jacobi_first off the factor takes over at its turn, step " << k + 1;
+  const double even = core::jacobi_first_iterations(rows);
+  for (size_t i = 0; i < first.iterations.size(); ++i) {
+    EXPECT_EQ(first.factorizations[i], 0) << "step " << i + 1 << ": block Jacobi should go on";
+    EXPECT_LE(first.iterations[i], 2 * even) << "step " << i + 1;
+    if (i > k) EXPECT_GT(first.iterations[i], 3 * off.iterations[i]) << "step " << i + 1 << ": not block Jacobi?";
+  }
+  // Both within what the tolerance (1e-6 of each solve) lets through.
+  const Eigen::VectorXd x0 = box(2.0).mesh.rest_positions().reshaped();
+  EXPECT_LT((first.x.back() - off.x.back()).norm(), 1e-4 * (off.x.back() - x0).norm());
+}
+
+TEST(FirstFactorisation, WithBlockJacobiFirstAnExpensiveBlockJacobiGivesWayAtTheFactorsTurn) {
+  const int n = 20;
+  const Trace first = box_steps(1.0, core::kJacobiFirstAuto, n);
+  const Trace off = box_steps(1.0, 0, n);
+  const int rows = core::Simulator(box(1.0), box_settings(0)).system().num_free();
+  const size_t k = expected_takeover(off, rows);
+  ASSERT_LT(k, static_cast<size_t>(n)) << "the factor's turn should come within the run";
+  for (size_t i = 0; i < first.iterations.size(); ++i) {
+    EXPECT_EQ(first.factorizations[i], off.factorizations[i]) << "step " << i + 1;
+    EXPECT_EQ(first.factorizations[i], i == k ? 1 : 0) << "step " << i + 1;
+  }
+  const Eigen::VectorXd x0 = box(1.0).mesh.rest_positions().reshaped();
+  EXPECT_LT((first.x.back() - off.x.back()).norm(), 1e-5 * (off.x.back() - x0).norm());
+}
+
+// A checkpoint taken past the factor's turn while block Jacobi goes on (the factor held)
+// resumes bit for bit, still on block Jacobi.
+TEST(FirstFactorisation, ACheckpointWithTheFactorHeldResumesBitForBit) {
+  const core::Model model = box(2.0);
+  const core::SimulatorSettings settings = box_settings(core::kJacobiFirstAuto);
+  core::Simulator whole(model, settings);
+  Trace head, tail;
+  testing::record_steps(whole, 40, head);
+  const core::SimulatorCheckpoint c = whole.checkpoint();
+  ASSERT_TRUE(c.solver.jacobi_first) << "block Jacobi should still run";
+  bool held = false;
+  for (const auto& f : c.solver.factors) held = held || (f.beside && f.beside_left <= 0);
+  ASSERT_TRUE(held) << "the checkpoint should hold the factor whose turn has come";
+  testing::record_steps(whole, 5, tail);
+  core::Simulator resumed(model, settings);
+  resumed.restore(c);
+  Trace again;
+  testing::record_steps(resumed, 5, again);
+  for (size_t i = 0; i < tail.x.size(); ++i) {
+    EXPECT_TRUE(again.x[i] == tail.x[i]) << "positions differ at step " << i + 41;
+    EXPECT_EQ(again.iterations[i], tail.iterations[i]) << "step " << i + 41;
+    EXPECT_EQ(again.factorizations[i], 0) << "step " << i + 41;
+  }
 }
 
 }  // namespace
