@@ -261,12 +261,17 @@ bool Simulator::check_step(double h, double kinetic, double elastic, bool last_c
       const double gain = (kinetic1 + elastic1) - (kinetic + elastic) - work;
       // st_.energy_floor_j: the energy of a uniform strain of 1e-8, below which energy
       // changes are round-off (and polar tolerance), not dynamics. At the finest substep
-      // the step is accepted whatever the gain (refinement, not failure).
-      const double allowed = settings_.max_energy_gain * (kinetic + elastic + std::abs(work));
-      if (gain > allowed + st_.energy_floor_j && !last_chance) {
-        char buf[160];
-        std::snprintf(buf, sizeof buf, "energy grew by %.3g J without external work (%.3g of the state's energy)",
-                      gain, gain / (kinetic + elastic + std::abs(work) + 1e-300));
+      // the step is accepted with a gain beyond the allowance (refinement, not failure),
+      // up to kFinestEnergyGain times the state's energy: a substep that gains more even
+      // there is blowing up (a load the linearised model cannot carry), and the step fails
+      // instead of handing on a state of 1e140 m.
+      const double state = kinetic + elastic + std::abs(work);
+      const double allowed = settings_.max_energy_gain * state;
+      const double limit = last_chance ? std::max(allowed, SimulatorSettings::kFinestEnergyGain * state) : allowed;
+      if (gain > limit + st_.energy_floor_j) {
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "energy grew by %.3g J without external work (%.3g of the state's energy%s)",
+                      gain, gain / (state + 1e-300), last_chance ? ", at the finest substep level" : "");
         why = buf;
         st_.rotations_current = false;
         assembled_ahead_ = false;

@@ -60,7 +60,7 @@ struct Result {
   std::string note;
   /// Bounded: kinetic + elastic energy at most kEnergySlack times its bound. The energy
   /// check lets a step gain up to 1e-3 of the state's energy (SimulatorSettings::
-  /// max_energy_gain) and accepts its finest substep level whatever the gain: at a fiber
+  /// max_energy_gain) and, at its finest substep level, any gain short of doubling: at a fiber
   /// ratio of 1,000 the first two steps after the release gain 4-5% at 16 substeps (1.044
   /// on one CPU, 1.053 on an AVX-512 one: the bits of that case follow the build's vector
   /// width), while an unstable case exceeds its bound many times over (ratio 10,000: 2,000).

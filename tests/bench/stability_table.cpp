@@ -16,6 +16,17 @@ std::string g(double v, const char* f = "%.2g") {
   std::snprintf(b, sizeof b, f, v);
   return b;
 }
+
+// The note column: what went wrong, then the case's own note, joined by "; ".
+std::string note(const fiberfem::stability::Result& r) {
+  std::string s = r.finite ? "" : "non-finite state";
+  const auto add = [&s](const std::string& part) {
+    if (!part.empty()) s += (s.empty() ? "" : "; ") + part;
+  };
+  if (r.failed_steps) add(std::to_string(r.failed_steps) + " failed steps");
+  add(r.note);
+  return s;
+}
 }  // namespace
 
 int stability_main(const std::string& out_md, int /*threads*/) {
@@ -31,8 +42,7 @@ int stability_main(const std::string& out_md, int /*threads*/) {
       << r.recovered_steps << ") | " << g(r.energy_ratio, "%.3f") << " | " << g(r.release_energy_ratio, "%.3f") << " | "
       << (r.static_converged ? "tip " + g(r.static_tip_m * 1e3, "%.3g") + " mm" : "not converged") << " | "
       << g(r.tip_error) << " | " << g(r.transient_error) << " | " << g(r.rest_error) << " | "
-      << (r.finite ? "" : "non-finite state; ") << (r.failed_steps ? std::to_string(r.failed_steps) + " failed steps; " : "")
-      << r.note << " |\n";
+      << note(r) << " |\n";
     std::cout << c.group << " " << c.value << ": " << (r.stable(c) ? "stable" : "NOT stable") << ", tip error "
               << g(r.tip_error) << ", transient " << g(r.transient_error) << ", rest error " << g(r.rest_error) << ", energy " << g(r.energy_ratio, "%.3f") << "/"
               << g(r.release_energy_ratio, "%.3f") << ", recovered " << r.recovered_steps << "/" << r.steps << "\n";

@@ -569,3 +569,30 @@ TEST(SimulatorExtremes, InversionLimitJudgesTheStateAfterTheStep) {
   const core::StepReport r = sim.step();
   EXPECT_EQ(sim.count_inverted(), 0);
 }
+
+// At the finest substep level the energy check accepts a gain beyond max_energy_gain, but
+// not a doubling of the state's energy in one substep (SimulatorSettings::
+// kFinestEnergyGain): a model that cannot carry its load blows up from there (Land problem
+// 3 on the real-time tier reached 1e291 J). The 1,000 g cantilever's first step from rest
+// gains 18 times its energy in one step: with no substeps allowed it fails, the state left
+// as it was; with the default 16 substeps it is taken.
+TEST(SimulatorExtremes, AStepThatDoublesItsEnergyAtTheFinestLevelFails) {
+  core::CantileverSpec spec = cantilever_spec();
+  spec.material.E_L = 6e6;
+  spec.material.E_T = 2e6;
+  spec.material.G_L = 0.8e6;
+  spec.gravity_m_s2 = Vec3(0, 0, -1000 * kGravity);
+  const core::Model model = core::make_cantilever(spec);
+  core::SimulatorSettings set;
+  set.max_substep_halvings = 0;
+  core::Simulator one(model, set);
+  const core::StepReport r = one.step();
+  EXPECT_EQ(r.status, core::StepStatus::failed);
+  EXPECT_NE(r.message.find("at the finest substep level"), std::string::npos) << r.message;
+  EXPECT_TRUE(one.positions() == model.mesh.rest_positions()) << "the failed step is rolled back";
+  EXPECT_EQ(one.velocities().cwiseAbs().maxCoeff(), 0.0);
+  core::Simulator sixteen(model);
+  const core::StepReport s = sixteen.step();
+  EXPECT_NE(s.status, core::StepStatus::failed) << s.message;
+  EXPECT_TRUE(sixteen.positions().allFinite());
+}
