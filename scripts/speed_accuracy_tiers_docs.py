@@ -8,7 +8,10 @@ against the reference and the cost) and the plots docs/images/speed-accuracy-tie
     for s in land-beam land-ventricle land-ventricle-p3; do
       build/release/service/fiberfem sweep configs/sweeps/tiers/$s.yaml --out build/study/tiers-$s
     done
-    .venv/bin/python scripts/speed_accuracy_tiers_docs.py [--study build/study] [--docs docs]"""
+    .venv/bin/python scripts/speed_accuracy_tiers_docs.py [--study build/study] [--docs docs]
+
+A scene whose sweep is not in --study keeps its section (and plot) of the existing results
+page, so one sweep can be re-run alone."""
 
 import argparse
 import json
@@ -83,8 +86,17 @@ def main():
            "displacement from the reference's, over the reference's; `P`: on the Pareto front of that",
            "error against wall time. Errors are deterministic; wall times are single runs on a shared",
            "machine.", ""]
+    results = os.path.join(a.docs, "speed-accuracy-tiers-results.md")
+    kept = earlier_sections(results)
     for scene, (what, published) in SCENES.items():
         d = os.path.join(a.study, f"tiers-{scene}")
+        if not os.path.exists(os.path.join(d, "results.parquet")):
+            # Not swept this time: its section and plot stay those of the run that made them.
+            if scene not in kept:
+                raise SystemExit(f"speed_accuracy_tiers_docs.py: no {d}/results.parquet and no earlier section for {scene}")
+            print(f"kept the earlier rows of {scene} (no {d})")
+            out += kept[scene]
+            continue
         df = pd.read_parquet(os.path.join(d, "results.parquet"))
         out += [f"## {scene}: Land et al. 2015 {what}", "",
                 f"`configs/sweeps/tiers/{scene}.yaml`, {len(df)} runs; published probe z: "
@@ -94,9 +106,26 @@ def main():
             out += ["", "Cheapest run per goal of the sweep file:", ""]
             out += [f"- {l}" for l in f.read().splitlines() if "<=" in l] + [""]
         shutil.copy(os.path.join(d, "settled_err.png"), os.path.join(a.docs, "images", f"speed-accuracy-tiers-{scene}.png"))
-    with open(os.path.join(a.docs, "speed-accuracy-tiers-results.md"), "w", encoding="utf-8") as f:
+    with open(results, "w", encoding="utf-8") as f:
         f.write("\n".join(out) + "\n")
-    print(f"wrote {os.path.join(a.docs, 'speed-accuracy-tiers-results.md')}")
+    print(f"wrote {results}")
+
+
+def earlier_sections(path) -> dict:
+    """The lines of each scene's section ("## SCENE: ...") of an existing results page."""
+    sections, scene = {}, None
+    try:
+        with open(path, encoding="utf-8") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return sections
+    for line in lines:
+        if line.startswith("## "):
+            scene = line[3:].split(":", 1)[0]
+            sections[scene] = []
+        if scene is not None:
+            sections[scene].append(line)
+    return sections
 
 
 if __name__ == "__main__":
