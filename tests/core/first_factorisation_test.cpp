@@ -194,7 +194,9 @@ TEST(FirstFactorisation, WithBlockJacobiFirstTheFactorIsHeldWhereBlockJacobiStay
   for (size_t i = 0; i < first.iterations.size(); ++i) {
     EXPECT_EQ(first.factorizations[i], 0) << "step " << i + 1 << ": block Jacobi should go on";
     EXPECT_LE(first.iterations[i], 2 * even) << "step " << i + 1;
-    if (i > k) EXPECT_GT(first.iterations[i], 3 * off.iterations[i]) << "step " << i + 1 << ": not block Jacobi?";
+    if (i > k) {
+      EXPECT_GT(first.iterations[i], 3 * off.iterations[i]) << "step " << i + 1 << ": not block Jacobi?";
+    }
   }
   // Both within what the tolerance (1e-6 of each solve) lets through.
   const Eigen::VectorXd x0 = box(2.0).mesh.rest_positions().reshaped();
