@@ -656,6 +656,41 @@ namespace {
 template <int K>
 void block_rows(const int* start, const int* col, const double* val, const double* x, double* y, double* spill,
                 int begin, int end) {
+  if constexpr (K > 1) {
+    // K columns side by side (the recycled solutions): each of a block row's three rows is
+    // K consecutive values, so both products are sums of whole rows times single entries
+    // of the block (broadcast), vectorised along the K columns. (Eigen's 3 x 3 transpose
+    // times 3 x K here compiled to scalar code: the projection's A W took as long as five
+    // single products.)
+    using Row = Eigen::Matrix<double, 1, K>;
+    constexpr size_t S = 3 * K;
+    for (int I = begin; I < end; ++I) {
+      const double* xp = x + S * static_cast<size_t>(I);
+      const Row x0 = Eigen::Map<const Row>(xp), x1 = Eigen::Map<const Row>(xp + K), x2 = Eigen::Map<const Row>(xp + 2 * K);
+      const double* d = val + 9 * static_cast<size_t>(start[I]);
+      Row a0 = d[0] * x0 + d[1] * x1 + d[2] * x2;
+      Row a1 = d[3] * x0 + d[4] * x1 + d[5] * x2;
+      Row a2 = d[6] * x0 + d[7] * x1 + d[8] * x2;
+      for (int k = start[I] + 1; k < start[I + 1]; ++k) {
+        const double* b = val + 9 * static_cast<size_t>(k);
+        const int J = col[k];
+        const double* xj = x + S * static_cast<size_t>(J);
+        const Eigen::Map<const Row> j0(xj), j1(xj + K), j2(xj + 2 * K);
+        a0 += b[0] * j0 + b[1] * j1 + b[2] * j2;
+        a1 += b[3] * j0 + b[4] * j1 + b[5] * j2;
+        a2 += b[6] * j0 + b[7] * j1 + b[8] * j2;
+        double* out = J < end ? y + S * static_cast<size_t>(J) : spill + S * static_cast<size_t>(J - end);
+        Eigen::Map<Row>(out) += b[0] * x0 + b[3] * x1 + b[6] * x2;
+        Eigen::Map<Row>(out + K) += b[1] * x0 + b[4] * x1 + b[7] * x2;
+        Eigen::Map<Row>(out + 2 * K) += b[2] * x0 + b[5] * x1 + b[8] * x2;
+      }
+      double* yi = y + S * static_cast<size_t>(I);
+      Eigen::Map<Row>(yi) += a0;
+      Eigen::Map<Row>(yi + K) += a1;
+      Eigen::Map<Row>(yi + 2 * K) += a2;
+    }
+    return;
+  }
   using B3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
   using R = Eigen::Matrix<double, 3, K, K == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
   constexpr size_t S = 3 * K;
