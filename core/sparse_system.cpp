@@ -689,22 +689,21 @@ void block_rows(const int* start, const int* col, const double* val, const doubl
       Eigen::Map<Row>(yi + K) += a1;
       Eigen::Map<Row>(yi + 2 * K) += a2;
     }
-    return;
-  }
-  using B3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
-  using R = Eigen::Matrix<double, 3, K, K == 1 ? Eigen::ColMajor : Eigen::RowMajor>;
-  constexpr size_t S = 3 * K;
-  for (int I = begin; I < end; ++I) {
-    const Eigen::Map<const R> xi(x + S * static_cast<size_t>(I));
-    R acc = Eigen::Map<const B3>(val + 9 * static_cast<size_t>(start[I])) * xi;
-    for (int k = start[I] + 1; k < start[I + 1]; ++k) {
-      const Eigen::Map<const B3> b(val + 9 * static_cast<size_t>(k));
-      const int J = col[k];
-      acc.noalias() += b * Eigen::Map<const R>(x + S * static_cast<size_t>(J));
-      double* out = J < end ? y + S * static_cast<size_t>(J) : spill + S * static_cast<size_t>(J - end);
-      Eigen::Map<R>(out).noalias() += b.transpose() * xi;
+  } else {
+    using B3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
+    using V3 = Eigen::Vector3d;
+    for (int I = begin; I < end; ++I) {
+      const Eigen::Map<const V3> xi(x + 3 * static_cast<size_t>(I));
+      V3 acc = Eigen::Map<const B3>(val + 9 * static_cast<size_t>(start[I])) * xi;
+      for (int k = start[I] + 1; k < start[I + 1]; ++k) {
+        const Eigen::Map<const B3> b(val + 9 * static_cast<size_t>(k));
+        const int J = col[k];
+        acc.noalias() += b * Eigen::Map<const V3>(x + 3 * static_cast<size_t>(J));
+        double* out = J < end ? y + 3 * static_cast<size_t>(J) : spill + 3 * static_cast<size_t>(J - end);
+        Eigen::Map<V3>(out).noalias() += b.transpose() * xi;
+      }
+      Eigen::Map<V3>(y + 3 * static_cast<size_t>(I)) += acc;
     }
-    Eigen::Map<R>(y + S * static_cast<size_t>(I)) += acc;
   }
 }
 

@@ -182,12 +182,25 @@ Trace box_steps(double length, int jacobi_first, int n) {
   return t;
 }
 
+// n steps of the box with block Jacobi first and with it off, the box's free DOFs, and the
+// step at which the factor takes over with it off.
+struct JacobiFirstRuns {
+  Trace first, off;
+  int rows = 0;
+  size_t k = 0;
+};
+JacobiFirstRuns jacobi_first_runs(double length, int n) {
+  JacobiFirstRuns r;
+  r.first = box_steps(length, core::kJacobiFirstAuto, n);
+  r.off = box_steps(length, 0, n);
+  r.rows = core::Simulator(box(length), box_settings(0)).system().num_free();
+  r.k = expected_takeover(r.off, r.rows);
+  return r;
+}
+
 TEST(FirstFactorisation, WithBlockJacobiFirstTheFactorIsHeldWhereBlockJacobiStaysCheap) {
   const int n = 45;
-  const Trace first = box_steps(2.0, core::kJacobiFirstAuto, n);
-  const Trace off = box_steps(2.0, 0, n);
-  const int rows = core::Simulator(box(2.0), box_settings(0)).system().num_free();
-  const size_t k = expected_takeover(off, rows);
+  const auto [first, off, rows, k] = jacobi_first_runs(2.0, n);
   ASSERT_LT(k + 5, static_cast<size_t>(n)) << "the factor's turn should come within the run";
   EXPECT_EQ(off.factorizations[k], 1) << "with jacobi_first off the factor takes over at its turn, step " << k + 1;
   const double even = core::jacobi_first_iterations(rows);
@@ -205,10 +218,7 @@ TEST(FirstFactorisation, WithBlockJacobiFirstTheFactorIsHeldWhereBlockJacobiStay
 
 TEST(FirstFactorisation, WithBlockJacobiFirstAnExpensiveBlockJacobiGivesWayAtTheFactorsTurn) {
   const int n = 20;
-  const Trace first = box_steps(1.0, core::kJacobiFirstAuto, n);
-  const Trace off = box_steps(1.0, 0, n);
-  const int rows = core::Simulator(box(1.0), box_settings(0)).system().num_free();
-  const size_t k = expected_takeover(off, rows);
+  const auto [first, off, rows, k] = jacobi_first_runs(1.0, n);
   ASSERT_LT(k, static_cast<size_t>(n)) << "the factor's turn should come within the run";
   for (size_t i = 0; i < first.iterations.size(); ++i) {
     EXPECT_EQ(first.factorizations[i], off.factorizations[i]) << "step " << i + 1;

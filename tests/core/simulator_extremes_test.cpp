@@ -407,16 +407,23 @@ TEST(SimulatorExtremes, TimeStep01ReleaseNeverGainsEnergy) {
   EXPECT_LE(worst_rise, 1e-9);
 }
 
-// 1,000 times the body's weight applied suddenly to the cantilever at rest, held for 4 s,
-// then removed. The material is 100x the tissue default so the static answer is a large
-// but ordinary deflection (tip ~14 cm, no inverted element) that solve_static finds.
-TEST(SimulatorExtremes, ThousandTimesWeightThenReleased) {
+namespace {
+// The cantilever on a material 100x the tissue default under 1,000 times its weight.
+core::Model thousand_g_cantilever() {
   core::CantileverSpec spec = cantilever_spec();
   spec.material.E_L = 6e6;
   spec.material.E_T = 2e6;
   spec.material.G_L = 0.8e6;
   spec.gravity_m_s2 = Vec3(0, 0, -1000 * kGravity);
-  const core::Model model = core::make_cantilever(spec);
+  return core::make_cantilever(spec);
+}
+}  // namespace
+
+// 1,000 times the body's weight applied suddenly to the cantilever at rest, held for 4 s,
+// then removed. The material is 100x the tissue default so the static answer is a large
+// but ordinary deflection (tip ~14 cm, no inverted element) that solve_static finds.
+TEST(SimulatorExtremes, ThousandTimesWeightThenReleased) {
+  const core::Model model = thousand_g_cantilever();
   const StaticAnswer s = static_answer(model, 10);
   core::Simulator sim(model);
   RunStats loaded;
@@ -577,12 +584,7 @@ TEST(SimulatorExtremes, InversionLimitJudgesTheStateAfterTheStep) {
 // gains 18 times its energy in one step: with no substeps allowed it fails, the state left
 // as it was; with the default 16 substeps it is taken.
 TEST(SimulatorExtremes, AStepThatDoublesItsEnergyAtTheFinestLevelFails) {
-  core::CantileverSpec spec = cantilever_spec();
-  spec.material.E_L = 6e6;
-  spec.material.E_T = 2e6;
-  spec.material.G_L = 0.8e6;
-  spec.gravity_m_s2 = Vec3(0, 0, -1000 * kGravity);
-  const core::Model model = core::make_cantilever(spec);
+  const core::Model model = thousand_g_cantilever();
   core::SimulatorSettings set;
   set.max_substep_halvings = 0;
   core::Simulator one(model, set);
