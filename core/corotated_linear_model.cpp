@@ -4,11 +4,116 @@
 #include "core/parallel.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 #include <utility>
 
+#ifdef __AVX512F__
+#include <immintrin.h>
+#endif
+
 namespace fiberfem::core {
+
+namespace {
+
+using Lanes8 = double __attribute__((vector_size(8 * sizeof(double))));
+
+// xa[a][r] = coordinate r of corner a of each lane (x at node3[a][lane] + r).
+void gather_corners(const double* x, const int (*node3)[8], Lanes8 (&xa)[4][3]) {
+  for (int a = 0; a < 4; ++a) {
+#ifdef __AVX512F__
+    const __m256i idx = _mm256_load_si256(reinterpret_cast<const __m256i*>(node3[a]));
+    for (int r = 0; r < 3; ++r) {
+      const __m512d v = _mm512_i32gather_pd(idx, x + r, 8);
+      std::memcpy(&xa[a][r], &v, sizeof v);
+    }
+#else
+    for (int r = 0; r < 3; ++r)
+      for (int l = 0; l < 8; ++l) xa[a][r][l] = x[node3[a][l] + r];
+#endif
+  }
+}
+
+// Rl[3 r + c] = R(r, c) of each lane's rotation: R0 points at lane 0's (column-major 3 x 3
+// matrices in sequence); lanes past n repeat lane n - 1's.
+void gather_rotations(const double* R0, int n, Lanes8 (&Rl)[9]) {
+  alignas(32) int base[8];
+  for (int l = 0; l < 8; ++l) base[l] = 9 * std::min(l, n - 1);
+#ifdef __AVX512F__
+  const __m256i idx = _mm256_load_si256(reinterpret_cast<const __m256i*>(base));
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      const __m512d v = _mm512_i32gather_pd(idx, R0 + 3 * c + r, 8);
+      std::memcpy(&Rl[3 * r + c], &v, sizeof v);
+    }
+#else
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c)
+      for (int l = 0; l < 8; ++l) Rl[3 * r + c][l] = R0[base[l] + 3 * c + r];
+#endif
+}
+
+// (The helpers take and give lanes through references: passed by value, a vector of eight
+// doubles changes the calling convention between builds with and without AVX-512.)
+
+// out = a * b + c, rounded once.
+void fma8(const Lanes8& a, const Lanes8& b, const Lanes8& c, Lanes8& out) {
+#ifdef __AVX512F__
+  out = reinterpret_cast<Lanes8>(
+      _mm512_fmadd_pd(reinterpret_cast<__m512d>(a), reinterpret_cast<__m512d>(b), reinterpret_cast<__m512d>(c)));
+#else
+  for (int l = 0; l < 8; ++l) out[l] = std::fma(a[l], b[l], c[l]);
+#endif
+}
+
+// out = a * b rounded on its own (never fused into a sum that uses it).
+void product8(const Lanes8& a, const Lanes8& b, Lanes8& out) {
+#ifdef __AVX512F__
+  out = a * b;
+  asm("" : "+v"(out));
+#else
+  for (int l = 0; l < 8; ++l) {
+    volatile double p = a[l] * b[l];
+    out[l] = p;
+  }
+#endif
+}
+
+// out = row r of a 3 x 3 product, the sum over k of m[k] v[k], fused in the order GCC
+// compiles Eigen's fixed-size 3 x 3 products for AVX-512 (k = 0, 1, 2 in rows 0 and 1;
+// k = 1, 2, 0 in row 2): there the pass's lanes round as the scalar code's Eigen products
+// (element_gradient's F, the active force's R f and Dm^-1 f), bit for bit.
+void row3(int r, const Lanes8* m, const Lanes8* v, Lanes8& out) {
+  Lanes8 t;
+  if (r < 2) {
+    fma8(m[1], v[1], m[0] * v[0], t);
+    fma8(m[2], v[2], t, out);
+  } else {
+    fma8(m[2], v[2], m[1] * v[1], t);
+    fma8(m[0], v[0], t, out);
+  }
+}
+
+// F = I + D Dm^-1 of lanes 0..n-1 (D and Dm^-1 row-major, lanes).
+void gradients(const Lanes8 (&D)[9], const Lanes8 (&Dinv)[9], int n, Mat3* F) {
+  for (int c = 0; c < 3; ++c) {
+    const Lanes8 col[3] = {Dinv[c], Dinv[3 + c], Dinv[6 + c]};
+    for (int r = 0; r < 3; ++r) {
+      Lanes8 v;
+      row3(r, D + 3 * r, col, v);
+      if (r == c) v += 1.0;
+      for (int l = 0; l < n; ++l) F[l](r, c) = v[l];
+    }
+  }
+}
+
+// out = M v for M row-major (lanes).
+void matvec3(const Lanes8 (&M)[9], const Lanes8 (&v)[3], Lanes8 (&out)[3]) {
+  for (int r = 0; r < 3; ++r) row3(r, M + 3 * r, v, out[r]);
+}
+
+}  // namespace
 
 CorotatedLinearModel::CorotatedLinearModel(const Model& model, std::vector<int> block_nodes,
                                            const std::vector<int>& element_order)
@@ -36,6 +141,25 @@ CorotatedLinearModel::CorotatedLinearModel(const Model& model, std::vector<int> 
     if (!model.region_damping.empty()) beta_[k] = model.region_damping[static_cast<size_t>(region_[k])].stiffness_s;
   });
   for (const Material& m : model.region_materials) region_law_.push_back(SpencerConstants::of(m));
+  static_assert(ElementBatch::kWidth == 8, "ElementLanes holds eight lanes");
+  lanes_.resize(static_cast<size_t>((ne + 7) / 8));
+  for (size_t b = 0; b < lanes_.size(); ++b) {
+    ElementLanes& L = lanes_[b];
+    for (int l = 0; l < 8; ++l) {
+      const size_t k = std::min(8 * b + static_cast<size_t>(l), static_cast<size_t>(ne - 1));
+      const SpencerElement& el = elements_[k];
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+          L.Dm[3 * r + c][l] = el.Dm(r, c);
+          L.Dm_inv[3 * r + c][l] = el.Dm_inv(r, c);
+        }
+      for (int c = 0; c < 3; ++c) L.fiber[c][l] = el.fiber(c);
+      L.volume[l] = el.volume;
+      L.beta[l] = beta_[k];
+      for (int a = 0; a < 4; ++a) L.node3[a][l] = 3 * tets_[k][static_cast<size_t>(a)];
+    }
+  }
+  refresh_lane_laws();
   // The elements around each node (CSR), for the node-block rotations.
   const int nn = mesh_.num_nodes();
   node_elem_start_.assign(static_cast<size_t>(nn) + 1, 0);
@@ -115,7 +239,8 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
   const bool need_rotations = !st.rotations_current;
   constexpr int W = ElementBatch::kWidth;
   static_assert(W <= 8, "rotate_elements takes at most eight elements");
-  using Lanes = double __attribute__((vector_size(W * sizeof(double))));
+  using Lanes = Lanes8;
+  const int ne = static_cast<int>(elements_.size());
   sys.assemble_batched(
       [&](const int* elems, int n, ElementBatch& batch) {
         ChunkAcc& my = acc[static_cast<size_t>(batch.chunk)];
@@ -124,61 +249,75 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
         // sequence), the active tension at the element.
         size_t lane_pos[W];
         for (int l = 0; l < W; ++l) lane_pos[l] = static_cast<size_t>(batch.first + std::min(l, n - 1));
-        Mat3 D[W], F[W];
-        for (int l = 0; l < W; ++l) {
-          D[l] = element_edges(x, lane_pos[l]);
-          if (l < n) {
-            F[l].noalias() = D[l] * elements_[lane_pos[l]].Dm_inv;
-            F[l].diagonal().array() += 1.0;
-          }
+        // The lanes of this batch as stored (a batch at a multiple of eight, whole or the
+        // last), else copied lane by lane (a loop with chunks of another size).
+        ElementLanes copy;
+        const bool stored = batch.first % W == 0 && (n == W || batch.first + n == ne);
+        if (!stored) lanes_copy(lane_pos, copy);
+        const ElementLanes& L = stored ? lanes_[static_cast<size_t>(batch.first / W)] : copy;
+        Lanes Dil[9], Dl[9], fl[3], kv[5], cl;
+        std::memcpy(Dil, L.Dm_inv, sizeof Dil);
+        std::memcpy(fl, L.fiber, sizeof fl);
+        std::memcpy(kv, L.law, sizeof kv);
+        {
+          Lanes beta;
+          std::memcpy(&beta, L.beta, sizeof beta);
+          cl = h * beta + h * h;
         }
-        if (need_rotations) my.inverted += rotate_elements(pass, st, batch.first, n, F);
-        Lanes kv[5], cl, Rl[9], Dil[9], Dl[9], fl[3];
-        for (int l = 0; l < W; ++l) {
-          const size_t k = lane_pos[l];
-          const SpencerElement& el = elements_[k];
-          const SpencerConstants& law = region_law_[static_cast<size_t>(region_[k])];
-          kv[0][l] = el.volume * law.lambda;
-          kv[1][l] = el.volume * law.mu_t;
-          kv[2][l] = el.volume * law.alpha;
-          kv[3][l] = el.volume * law.gamma;
-          kv[4][l] = el.volume * law.beta;
-          cl[l] = h * beta_[k] + h * h;
-          const Mat3& R = st.R[k];
+        // D = Ds - Dm: the corners' positions gathered lane by lane.
+        {
+          Lanes xa[4][3];
+          gather_corners(x.data(), L.node3, xa);
           for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c) {
-              Rl[3 * r + c][l] = R(r, c);
-              Dil[3 * r + c][l] = el.Dm_inv(r, c);
-              Dl[3 * r + c][l] = D[l](r, c);
+              Lanes dm;
+              std::memcpy(&dm, L.Dm[3 * r + c], sizeof dm);
+              Dl[3 * r + c] = (xa[c + 1][r] - xa[0][r]) - dm;
             }
-          for (int c = 0; c < 3; ++c) fl[c][l] = el.fiber(c);
         }
+        if (need_rotations) {
+          // F = I + D Dm^-1 (the same operations, in the same order, as one element's).
+          Mat3 F[W];
+          gradients(Dl, Dil, n, F);
+          my.inverted += rotate_elements(pass, st, batch.first, n, F);
+        }
+        Lanes Rl[9];
+        gather_rotations(st.R[static_cast<size_t>(batch.first)].data(), n, Rl);
         // Forces -V R sigma g_a and energies of all lanes at once.
         Lanes fel[12], energy;
         spencer_force_lanes(kv, Rl, Dil, Dl, fl, fel, energy);
+        if (active) {
+          // g^e_a = V f (f . g_a) (PHYSICS.md section 6): the active force is
+          // -T_a V (R f)(f . g_a), or along the rest fiber f in the paper's nodal mode.
+          Lanes tv, vol, s[3], dir[3], fa[4][3];
+          for (int l = 0; l < W; ++l) tv[l] = st.active_tension_pa[static_cast<size_t>(elems[std::min(l, n - 1)])];
+          std::memcpy(&vol, L.volume, sizeof vol);
+          tv *= vol;
+          matvec3(Dil, fl, s);  // f . g_a, a = 1..3
+          if (rest_frame_active)
+            std::memcpy(dir, fl, sizeof dir);
+          else
+            matvec3(Rl, fl, dir);
+          const Lanes sa[4] = {-((s[0] + s[1]) + s[2]), s[0], s[1], s[2]};
+          for (int a = 0; a < 4; ++a) {
+            const Lanes ka = -tv * sa[a];
+            for (int c = 0; c < 3; ++c) {
+              product8(ka, dir[c], fa[a][c]);
+              fel[3 * a + c] += fa[a][c];
+            }
+          }
+          if (track_active_work)
+            for (int l = 0; l < n; ++l) {
+              const Tet& t = tets_[lane_pos[l]];
+              for (int a = 0; a < 4; ++a)
+                f_active.segment<3>(3 * t[static_cast<size_t>(a)]) += Vec3(fa[a][0][l], fa[a][1][l], fa[a][2][l]);
+            }
+        }
         for (int l = 0; l < n; ++l) {
           Vec12& fe = batch.force[l];
           for (int c = 0; c < 12; ++c) fe(c) = fel[c][l];
           my.energy += energy[l];
         }
-        if (active)
-          for (int l = 0; l < n; ++l) {
-            // g^e_a = V f (f . g_a) (PHYSICS.md section 6): the active force is
-            // -T_a V (R f)(f . g_a), or along the rest fiber f in the paper's nodal mode.
-            const size_t i = static_cast<size_t>(elems[l]), k = lane_pos[l];
-            const SpencerElement& el = elements_[k];
-            Vec12& fe = batch.force[l];
-            const Vec3 dir = rest_frame_active ? el.fiber : Vec3(st.R[k] * el.fiber);
-            const Vec3 s123 = el.Dm_inv * el.fiber;  // f . g_a, a = 1..3
-            const double sa[4] = {-(s123(0) + s123(1) + s123(2)), s123(0), s123(1), s123(2)};
-            const double tv = st.active_tension_pa[i] * el.volume;
-            const Tet& t = tets_[k];
-            for (int a = 0; a < 4; ++a) {
-              const Vec3 fa = (-tv * sa[a]) * dir;
-              fe.segment<3>(3 * a) += fa;
-              if (track_active_work) f_active.segment<3>(3 * t[static_cast<size_t>(a)]) += fa;
-            }
-          }
         // The warped stiffness of all lanes at once: c R K^e R^T (core/spencer_element.hpp).
         Lanes k[5];
         for (int j = 0; j < 5; ++j) k[j] = cl * kv[j];
@@ -254,17 +393,59 @@ void CorotatedLinearModel::update_node_rotations(SimulatorState& st, bool corota
   });
 }
 
+void CorotatedLinearModel::lanes_copy(const size_t* pos, ElementLanes& out) const {
+  for (int l = 0; l < 8; ++l) {
+    const ElementLanes& from = lanes_[pos[l] / 8];
+    const int m = static_cast<int>(pos[l] % 8);
+    for (int q = 0; q < 9; ++q) {
+      out.Dm[q][l] = from.Dm[q][m];
+      out.Dm_inv[q][l] = from.Dm_inv[q][m];
+    }
+    for (int c = 0; c < 3; ++c) out.fiber[c][l] = from.fiber[c][m];
+    for (int j = 0; j < 5; ++j) out.law[j][l] = from.law[j][m];
+    out.volume[l] = from.volume[m];
+    out.beta[l] = from.beta[m];
+    for (int a = 0; a < 4; ++a) out.node3[a][l] = from.node3[a][m];
+  }
+}
+
+void CorotatedLinearModel::refresh_lane_laws() {
+  const size_t ne = elements_.size();
+  for (size_t b = 0; b < lanes_.size(); ++b)
+    for (size_t l = 0; l < 8; ++l) {
+      const size_t k = std::min(8 * b + l, ne - 1);
+      const double v = elements_[k].volume;
+      const SpencerConstants& law = region_law_[static_cast<size_t>(region_[k])];
+      double* out[5] = {lanes_[b].law[0], lanes_[b].law[1], lanes_[b].law[2], lanes_[b].law[3], lanes_[b].law[4]};
+      out[0][l] = v * law.lambda;
+      out[1][l] = v * law.mu_t;
+      out[2][l] = v * law.alpha;
+      out[3][l] = v * law.gamma;
+      out[4][l] = v * law.beta;
+    }
+}
+
 void CorotatedLinearModel::set_region_material(int region, const Material& material) {
   region_law_[static_cast<size_t>(region)] = SpencerConstants::of(material);
+  refresh_lane_laws();
 }
 
 void CorotatedLinearModel::set_region_stiffness_damping(int region, double beta_s) {
-  for (size_t k = 0; k < region_.size(); ++k)
+  const size_t ne = region_.size();
+  for (size_t k = 0; k < ne; ++k)
     if (region_[k] == region) beta_[k] = beta_s;
+  for (size_t b = 0; b < lanes_.size(); ++b)
+    for (size_t l = 0; l < 8; ++l) lanes_[b].beta[l] = beta_[std::min(8 * b + l, ne - 1)];
 }
 
 void CorotatedLinearModel::set_fiber(int e, const Vec3& unit_fiber) {
-  elements_[static_cast<size_t>(position_[static_cast<size_t>(e)])].fiber = unit_fiber;
+  const size_t k = static_cast<size_t>(position_[static_cast<size_t>(e)]), ne = elements_.size();
+  elements_[k].fiber = unit_fiber;
+  // Its lane, and the padding lanes that repeat it when it is the last element.
+  for (size_t p = k; p < 8 * lanes_.size(); ++p) {
+    if (p != k && k != ne - 1) break;
+    for (int c = 0; c < 3; ++c) lanes_[p / 8].fiber[c][p % 8] = unit_fiber(c);
+  }
 }
 
 }  // namespace fiberfem::core

@@ -38,12 +38,35 @@ class CorotatedLinearModel final : public ElementModel {
   void set_region_material(int region, const Material& material) override;
   void set_region_stiffness_damping(int region, double beta_s) override;
   void set_fiber(int e, const Vec3& unit_fiber) override;
+  /// Bytes of stored data the pass reads per element (rest shape, fiber, law, damping,
+  /// nodes), for traffic counts.
+  static constexpr size_t pass_bytes_per_element() { return sizeof(ElementLanes) / 8; }
 
  private:
   /// Ds - Dm and F of the element at loop position k.
   Mat3 element_edges(const Eigen::VectorXd& x, size_t k) const;
   Mat3 element_gradient(const Eigen::VectorXd& x, size_t k) const;
   static int rotate_elements(const ElementPass& pass, SimulatorState& st, int first, int n, const Mat3* F);
+  /// The pass's lanes of volume times the region law's constants, from elements_, region_
+  /// and region_law_ (after a material changes).
+  void refresh_lane_laws();
+  struct ElementLanes;
+  /// Lanes of loop positions pos[0..7] copied from lanes_.
+  void lanes_copy(const size_t* pos, ElementLanes& out) const;
+
+  // What the pass reads of each element, eight loop positions side by side: lane l of
+  // block b is loop position 8 b + l (the pass's batches start at multiples of eight),
+  // read with vector loads instead of one value per lane. The last block's lanes past the
+  // last element repeat it. Values as in elements_ (the same bits).
+  struct alignas(64) ElementLanes {
+    double Dm[9][8];      // rest edges, row-major: Dm(r, c) at [3 r + c]
+    double Dm_inv[9][8];  // rest-shape inverse, row-major
+    double fiber[3][8];
+    double law[5][8];     // volume times lambda, mu_T, alpha, gamma, beta of the region
+    double volume[8];     // rest volume, m^3
+    double beta[8];       // stiffness damping, s
+    int node3[4][8];      // 3 x the node of each corner (its first coordinate in x)
+  };
 
   const TetMesh& mesh_;
   // Per element, stored by loop position (position_[e] of element e, order_[k] at k).
@@ -53,6 +76,7 @@ class CorotatedLinearModel final : public ElementModel {
   std::vector<int> region_;                   // region
   std::vector<double> beta_;                  // stiffness damping, s
   std::vector<SpencerConstants> region_law_;  // per region
+  std::vector<ElementLanes> lanes_;           // what the pass reads, by blocks of eight positions
   // Node blocks of the free DOFs (for the warp preconditioner): node of each block, and
   // the elements around each node (CSR, by loop position, in element order).
   std::vector<int> block_node_;

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <utility>
 #include <vector>
 
@@ -105,6 +106,24 @@ struct BlockRows {
 /// core/keyed_sort.cpp, apart because Boost.Sort's namespace clashes with Boost.Graph's
 /// headers in one translation unit). Distinct pairs come out as any sort leaves them.
 void sort_keyed(std::vector<std::pair<std::uint64_t, int>>& pairs);
+
+/// out[0..8] += lane l of the batch block blk (row-major, or transposed), read and written
+/// as eight values and one: the next lane of a batch often adds to the same block (its
+/// elements share nodes), and its load is then forwarded from this store whole. Written
+/// value by value, the compiler merged the eight stores into one vector store and the next
+/// lane's single-value loads waited for it to reach the cache.
+inline void add_block(double* out, const double (*blk)[ElementBatch::kWidth], int l, bool transposed) {
+  using V8 = double __attribute__((vector_size(8 * sizeof(double))));
+  V8 o, b;
+  std::memcpy(&o, out, sizeof o);
+  if (transposed)
+    b = V8{blk[0][l], blk[3][l], blk[6][l], blk[1][l], blk[4][l], blk[7][l], blk[2][l], blk[5][l]};
+  else
+    b = V8{blk[0][l], blk[1][l], blk[2][l], blk[3][l], blk[4][l], blk[5][l], blk[6][l], blk[7][l]};
+  o += b;
+  std::memcpy(out, &o, sizeof o);
+  out[8] += blk[8][l];
+}
 
 }  // namespace detail
 
@@ -373,12 +392,7 @@ void SparseSystem::assemble_batched(BatchKernel&& kernel, Eigen::VectorXd& f_ful
               if (eb[k] < 0) continue;
               const double(*blk)[W] = &batch.upper[9 * k];
               double* out = bvals + 9 * static_cast<size_t>(eb[k] >> 1);
-              if (eb[k] & 1) {
-                for (int i = 0; i < 3; ++i)
-                  for (int j = 0; j < 3; ++j) out[3 * j + i] += blk[3 * i + j][l];
-              } else {
-                for (int q = 0; q < 9; ++q) out[q] += blk[q][l];
-              }
+              detail::add_block(out, blk, l, (eb[k] & 1) != 0);
             }
           } else if (general < 0) {
             const int* s = &block_scatter_[pos * kBlockIndices];

@@ -11,8 +11,8 @@
 //
 //   bench_traffic --scene FILE [--steps 60] [--warmup 10] [--threads 1] [--stream-mb 512]
 
+#include "core/corotated_linear_model.hpp"
 #include "core/simulator.hpp"
-#include "core/spencer_element.hpp"
 #include "io/scene.hpp"
 
 #include <CLI/CLI.hpp>
@@ -146,10 +146,10 @@ int main(int argc, char** argv) {
   const core::FactorInfo f = sim.linear_solver().factor_info();
   const double factor_bytes = f.factored ? f.nonzeros * (scene.settings.solver.single_precision_preconditioner ? 4 : 8) : 0;
   // Bytes per step of the element pass: per element its stored data (rest shape, fiber,
-  // volume), nodes, region, damping, block scatter indices (10 ints), the rotation and the
-  // warm start read and written; the block store written (read for ownership, written);
-  // positions read and forces written per node; the mass terms and the right-hand side.
-  const double per_element = sizeof(core::SpencerElement) + 16 + 4 + 8 + 40 + 2 * (72 + 32);
+  // law, damping, nodes), block scatter indices (10 ints), the rotation and the warm start
+  // read and written; the block store written (read for ownership, written); positions
+  // read and forces written per node; the mass terms and the right-hand side.
+  const double per_element = core::CorotatedLinearModel::pass_bytes_per_element() + 40 + 2 * (72 + 32);
   const double assembly_bytes = E * per_element + 2 * 72 * blocks + N * (24 + 2 * 24) + n * (8 * 6);
   // Bytes per PCG iteration: the block product (blocks and their column indices, x read, y
   // written) and about eight vector passes of the iteration's updates and dot products;

@@ -31,10 +31,12 @@ core::Model small_box(bool isotropic) {
   return m;
 }
 
-// The element model and the state and system it works on, as the Simulator holds them.
+// The element model and the state and system it works on, as the Simulator holds them
+// (elements in chunks of `chunk` for the loop; the Simulator's are 32).
 struct Pass {
-  explicit Pass(bool isotropic)
-      : model(small_box(isotropic)), sys(model.mesh, model.fixed_dofs), elements(model, sys.block_nodes(), sys.element_order()) {
+  explicit Pass(bool isotropic, int chunk = 32) : Pass(small_box(isotropic), chunk) {}
+  Pass(core::Model m, int chunk)
+      : model(std::move(m)), sys(model.mesh, model.fixed_dofs, chunk), elements(model, sys.block_nodes(), sys.element_order()) {
     const size_t ne = static_cast<size_t>(model.mesh.num_elements());
     st.R.assign(ne, Mat3::Identity());
     st.q.assign(ne, Eigen::Quaterniond::Identity());
@@ -49,6 +51,14 @@ struct Pass {
     pass.h_s = 0.01;
     pass.rotation = core::RotationMethod::svd;
     return elements.assemble(pass, st, sys, f, f_active);
+  }
+
+  // A f and f of the last run, by element (not by the loop's numbering): the matrix applied
+  // to the vector v of the DOFs.
+  Eigen::VectorXd product(const Eigen::VectorXd& v) const {
+    Eigen::VectorXd y;
+    sys.block_product(v, y, false);
+    return y;
   }
 
   core::Model model;
@@ -143,6 +153,79 @@ TEST(CorotatedLinearModel, NodeRotationsFollowARigidRotation) {
   for (const Mat3& R : p.st.block_R) EXPECT_LT((R - R0).norm(), 1e-5);
   p.elements.update_node_rotations(p.st, /*corotation=*/false);
   for (const Mat3& R : p.st.block_R) EXPECT_TRUE(R.isIdentity());
+}
+
+// A box of 3 x 2 x 1 cells (36 tets: four batches of eight and one of four), free, with
+// fibers that differ per element and stiffness damping.
+core::Model varied_box() {
+  core::CantileverSpec spec;
+  spec.box.size_m = {0.03, 0.02, 0.01};
+  spec.box.cells = {3, 2, 1};
+  core::Model m = core::make_cantilever(spec);
+  m.fixed_dofs.clear();
+  for (size_t e = 0; e < m.fibers.size(); ++e)
+    m.fibers[e] = Vec3(1.0, 0.1 * static_cast<double>(e % 7), 0.05 * static_cast<double>(e % 5)).normalized();
+  m.region_damping.assign(m.region_materials.size(), core::RayleighDamping{0.0, 0.02});
+  m.validate();
+  return m;
+}
+
+double relative_difference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) { return (a - b).norm() / b.norm(); }
+
+TEST(CorotatedLinearModel, PassIsTheSameForLoopChunksOfAnySize) {
+  // The pass reads its per-element data eight loop positions at a time: chunks of 5 and
+  // 1 start batches off those blocks (read lane by lane), 32 on them; the forces, energy
+  // and matrix agree to round-off (the forces are summed in another order).
+  std::mt19937 rng(13);
+  const Mat3 R0 = fiberfem::testing::random_rotation(rng);
+  Pass ref(varied_box(), 32);
+  const Eigen::VectorXd x = deformed(ref.model, R0, 0.03, rng);
+  Eigen::VectorXd v(x.size());
+  for (Eigen::Index i = 0; i < v.size(); ++i) v(i) = std::sin(1.0 + static_cast<double>(i));
+  const double energy = ref.run(x);
+  const Eigen::VectorXd Av = ref.product(v);
+  for (int chunk : {5, 1}) {
+    Pass p(varied_box(), chunk);
+    EXPECT_NEAR(p.run(x), energy, 1e-12 * energy) << "chunk " << chunk;
+    EXPECT_LT(relative_difference(p.f, ref.f), 1e-12) << "chunk " << chunk;
+    EXPECT_LT(relative_difference(p.product(v), Av), 1e-12) << "chunk " << chunk;
+  }
+}
+
+TEST(CorotatedLinearModel, ParameterChangesReachThePass) {
+  // Fibers (the last element's too, which the padding lanes of the last batch repeat), a
+  // region's material and its stiffness damping set on a built model give the pass of a
+  // model built with them.
+  std::mt19937 rng(17);
+  const Mat3 R0 = fiberfem::testing::random_rotation(rng);
+  core::Model changed = varied_box();
+  const int ne = changed.mesh.num_elements();
+  const Vec3 f0 = Vec3(0.2, 1.0, 0.3).normalized(), f1 = Vec3(0.0, 0.4, 1.0).normalized();
+  core::LameFiberConstants lame;
+  lame.fiber_factor = 4.0;
+  lame.shear_factor = 1.5;
+  const core::Material stiffer = core::Material::from_lame(lame, 1000.0);
+  changed.fibers[0] = f0;
+  changed.fibers[static_cast<size_t>(ne - 1)] = f1;
+  changed.region_materials[0] = stiffer;
+  changed.region_damping[0].stiffness_s = 0.05;
+  Pass built(changed, 32), set(varied_box(), 32);
+  set.elements.set_fiber(0, f0);
+  set.elements.set_fiber(ne - 1, f1);
+  set.elements.set_region_material(0, stiffer);
+  set.elements.set_region_stiffness_damping(0, 0.05);
+  const Eigen::VectorXd x = deformed(built.model, R0, 0.03, rng);
+  Eigen::VectorXd v(x.size());
+  for (Eigen::Index i = 0; i < v.size(); ++i) v(i) = std::cos(2.0 + static_cast<double>(i));
+  const double energy = built.run(x);
+  EXPECT_EQ(set.run(x), energy);
+  EXPECT_EQ(set.f, built.f);
+  EXPECT_EQ(set.product(v), built.product(v));
+  // And the change matters: the unchanged model's pass differs.
+  Pass before(varied_box(), 32);
+  before.run(x);
+  EXPECT_GT(relative_difference(before.f, built.f), 1e-3);
+  EXPECT_GT(relative_difference(before.product(v), built.product(v)), 1e-3);
 }
 
 }  // namespace
