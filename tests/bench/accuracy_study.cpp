@@ -1,4 +1,4 @@
-// bench_accuracy: the speed-against-accuracy study (issue 6, docs/speed-accuracy.md).
+// bench_accuracy: the speed-against-accuracy study (docs/speed-accuracy.md).
 // A program, not a timed test.
 //
 // For each scene (cantilever, large-rotation cantilever, Land beam, Land ventricle, the

@@ -1,4 +1,4 @@
-// bench_step: speed of the dynamic step (issue 2's benchmark). A program, not a timed test.
+// bench_step: speed of the dynamic step. A program, not a timed test.
 //
 // A cantilever beam (10 x 1 x 1 cm, clamped at x = 0, gravity -z, lambda = 40 kPa,
 // mu = 10 kPa, rho = 1000 kg/m^3, mass damping 1/s, dt = 1/60 s) at three resolutions
@@ -370,7 +370,7 @@ int main(int argc, char** argv) {
   ratios << "| beam | solver | fiber/isotropic step time (median) | fiber/isotropic rotations+assembly | "
             "fiber/isotropic solve time per iteration | iterations/step fiber / isotropic | "
             "factorisations/step fiber / isotropic |\n|---|---|---:|---:|---:|---:|---:|\n";
-  // The issue 6 targets at the `interactive` preset's step and tolerance (1/30 s, 1e-3) on
+  // The speed targets at the `interactive` preset's step and tolerance (1/30 s, 1e-3) on
   // the same beams, in the same run: the default configuration and the energy check off
   // on the paper-size beam, the check off on the larger ones. Each size's rows run right
   // after its main rows (the paper-size ones before any large beam has been allocated:
@@ -501,7 +501,7 @@ int main(int argc, char** argv) {
       << ratios.str();
   if (with_interactive)
     doc << "\nThe `interactive` preset's step, tolerance and factor refresh (dt 1/30 s, PCG 1e-3, "
-           "refresh_budget 1, refresh_iterations 32; issue 6's target: 1,000 steps/s at the paper's size), same "
+           "refresh_budget 1, refresh_iterations 32; target: 1,000 steps/s at the paper's size), same "
            "beams, warm-ups and step counts, the energy check on (the default) on the paper-size beam and off on "
            "all three; the large beam also over 60 steps (2 s simulated), so that its refactorisations count; and a "
            "257,544-tet ventricle that beats (bench::ventricle_model: lv_ellipsoid 100 x 40 x 14, base held, helix-rule "
