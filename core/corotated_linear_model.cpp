@@ -17,7 +17,8 @@ namespace fiberfem::core {
 
 namespace {
 
-using Lanes8 = double __attribute__((vector_size(8 * sizeof(double))));
+// Eight doubles, one per lane; may alias doubles (the pass writes a batch's blocks in place).
+using Lanes8 = double __attribute__((vector_size(8 * sizeof(double)), __may_alias__));
 
 // xa[a][r] = coordinate r of corner a of each lane (x at node3[a][lane] + r).
 void gather_corners(const double* x, const int (*node3)[8], Lanes8 (&xa)[4][3]) {
@@ -321,9 +322,9 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
         // The warped stiffness of all lanes at once: c R K^e R^T (core/spencer_element.hpp).
         Lanes k[5];
         for (int j = 0; j < 5; ++j) k[j] = cl * kv[j];
-        Lanes out[90];
-        spencer_upper_blocks(k, Rl, Dil, fl, out);
-        std::memcpy(batch.upper, out, sizeof out);
+        // Written in place: batch.upper[q] is one vector of lanes (Lanes8 may alias doubles).
+        static_assert(sizeof batch.upper == 90 * sizeof(Lanes) && alignof(ElementBatch) >= alignof(Lanes));
+        spencer_upper_blocks(k, Rl, Dil, fl, reinterpret_cast<Lanes*>(batch.upper));
       },
       f);
   if (need_rotations) {
