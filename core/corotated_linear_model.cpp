@@ -256,6 +256,11 @@ double CorotatedLinearModel::assemble(const ElementPass& pass, SimulatorState& s
         const bool stored = batch.first % W == 0 && (n == W || batch.first + n == ne);
         if (!stored) lanes_copy(lane_pos, copy);
         const ElementLanes& L = stored ? lanes_[static_cast<size_t>(batch.first / W)] : copy;
+        // The next batch's lanes on their way to the cache while this one computes.
+        if (stored && batch.first + W < ne) {
+          const char* next = reinterpret_cast<const char*>(&lanes_[static_cast<size_t>(batch.first / W) + 1]);
+          for (size_t b = 0; b < sizeof(ElementLanes); b += 64) __builtin_prefetch(next + b);
+        }
         Lanes Dil[9], Dl[9], fl[3], kv[5], cl;
         std::memcpy(Dil, L.Dm_inv, sizeof Dil);
         std::memcpy(fl, L.fiber, sizeof fl);
