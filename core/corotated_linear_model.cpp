@@ -126,7 +126,6 @@ CorotatedLinearModel::CorotatedLinearModel(const Model& model, std::vector<int> 
   elements_.resize(static_cast<size_t>(ne));
   tets_.resize(static_cast<size_t>(ne));
   region_.resize(static_cast<size_t>(ne));
-  beta_.assign(static_cast<size_t>(ne), 0.0);
   parallel_for(ne, [&](int kk) {
     const size_t k = static_cast<size_t>(kk), i = static_cast<size_t>(order_[k]);
     const Vec12 X = gather(mesh_.rest_positions(), mesh_.tets()[i]);
@@ -139,16 +138,15 @@ CorotatedLinearModel::CorotatedLinearModel(const Model& model, std::vector<int> 
     elements_[k].volume = mesh_.rest_volume(order_[k]);
     tets_[k] = mesh_.tets()[i];
     region_[k] = mesh_.regions()[i];
-    if (!model.region_damping.empty()) beta_[k] = model.region_damping[static_cast<size_t>(region_[k])].stiffness_s;
   });
   for (const Material& m : model.region_materials) region_law_.push_back(SpencerConstants::of(m));
   static_assert(ElementBatch::kWidth == 8, "ElementLanes holds eight lanes");
   lanes_.resize(static_cast<size_t>((ne + 7) / 8));
-  for (size_t b = 0; b < lanes_.size(); ++b) {
-    ElementLanes& L = lanes_[b];
-    for (int l = 0; l < 8; ++l) {
-      const size_t k = std::min(8 * b + static_cast<size_t>(l), static_cast<size_t>(ne - 1));
-      const SpencerElement& el = elements_[k];
+  for (size_t k = 0; k < static_cast<size_t>(ne); ++k) {
+    const SpencerElement& el = elements_[k];
+    const double beta =
+        model.region_damping.empty() ? 0.0 : model.region_damping[static_cast<size_t>(region_[k])].stiffness_s;
+    for_each_slot(k, [&](ElementLanes& L, size_t l) {
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) {
           L.Dm[3 * r + c][l] = el.Dm(r, c);
@@ -156,9 +154,9 @@ CorotatedLinearModel::CorotatedLinearModel(const Model& model, std::vector<int> 
         }
       for (int c = 0; c < 3; ++c) L.fiber[c][l] = el.fiber(c);
       L.volume[l] = el.volume;
-      L.beta[l] = beta_[k];
+      L.beta[l] = beta;
       for (int a = 0; a < 4; ++a) L.node3[a][l] = 3 * tets_[k][static_cast<size_t>(a)];
-    }
+    });
   }
   refresh_lane_laws();
   // The elements around each node (CSR), for the node-block rotations.
@@ -416,19 +414,17 @@ void CorotatedLinearModel::lanes_copy(const size_t* pos, ElementLanes& out) cons
 }
 
 void CorotatedLinearModel::refresh_lane_laws() {
-  const size_t ne = elements_.size();
-  for (size_t b = 0; b < lanes_.size(); ++b)
-    for (size_t l = 0; l < 8; ++l) {
-      const size_t k = std::min(8 * b + l, ne - 1);
-      const double v = elements_[k].volume;
-      const SpencerConstants& law = region_law_[static_cast<size_t>(region_[k])];
-      double* out[5] = {lanes_[b].law[0], lanes_[b].law[1], lanes_[b].law[2], lanes_[b].law[3], lanes_[b].law[4]};
-      out[0][l] = v * law.lambda;
-      out[1][l] = v * law.mu_t;
-      out[2][l] = v * law.alpha;
-      out[3][l] = v * law.gamma;
-      out[4][l] = v * law.beta;
-    }
+  for (size_t k = 0; k < elements_.size(); ++k) {
+    const double v = elements_[k].volume;
+    const SpencerConstants& law = region_law_[static_cast<size_t>(region_[k])];
+    for_each_slot(k, [&](ElementLanes& L, size_t l) {
+      L.law[0][l] = v * law.lambda;
+      L.law[1][l] = v * law.mu_t;
+      L.law[2][l] = v * law.alpha;
+      L.law[3][l] = v * law.gamma;
+      L.law[4][l] = v * law.beta;
+    });
+  }
 }
 
 void CorotatedLinearModel::set_region_material(int region, const Material& material) {
@@ -437,21 +433,16 @@ void CorotatedLinearModel::set_region_material(int region, const Material& mater
 }
 
 void CorotatedLinearModel::set_region_stiffness_damping(int region, double beta_s) {
-  const size_t ne = region_.size();
-  for (size_t k = 0; k < ne; ++k)
-    if (region_[k] == region) beta_[k] = beta_s;
-  for (size_t b = 0; b < lanes_.size(); ++b)
-    for (size_t l = 0; l < 8; ++l) lanes_[b].beta[l] = beta_[std::min(8 * b + l, ne - 1)];
+  for (size_t k = 0; k < region_.size(); ++k)
+    if (region_[k] == region) for_each_slot(k, [&](ElementLanes& L, size_t l) { L.beta[l] = beta_s; });
 }
 
 void CorotatedLinearModel::set_fiber(int e, const Vec3& unit_fiber) {
-  const size_t k = static_cast<size_t>(position_[static_cast<size_t>(e)]), ne = elements_.size();
+  const size_t k = static_cast<size_t>(position_[static_cast<size_t>(e)]);
   elements_[k].fiber = unit_fiber;
-  // Its lane, and the padding lanes that repeat it when it is the last element.
-  for (size_t p = k; p < 8 * lanes_.size(); ++p) {
-    if (p != k && k != ne - 1) break;
-    for (int c = 0; c < 3; ++c) lanes_[p / 8].fiber[c][p % 8] = unit_fiber(c);
-  }
+  for_each_slot(k, [&](ElementLanes& L, size_t l) {
+    for (int c = 0; c < 3; ++c) L.fiber[c][l] = unit_fiber(c);
+  });
 }
 
 }  // namespace fiberfem::core

@@ -53,6 +53,13 @@ class CorotatedLinearModel final : public ElementModel {
   struct ElementLanes;
   /// Lanes of loop positions pos[0..7] copied from lanes_.
   void lanes_copy(const size_t* pos, ElementLanes& out) const;
+  /// fn(block, lane) for each slot of lanes_ that holds loop position k: its own, and
+  /// when k is the last element the padding slots after it, which repeat it.
+  template <class Fn>
+  void for_each_slot(size_t k, Fn&& fn) {
+    const size_t end = k + 1 == elements_.size() ? 8 * lanes_.size() : k + 1;
+    for (size_t p = k; p < end; ++p) fn(lanes_[p / 8], p % 8);
+  }
 
   // What the pass reads of each element, eight loop positions side by side: lane l of
   // block b is loop position 8 b + l (the pass's batches start at multiples of eight),
@@ -73,8 +80,7 @@ class CorotatedLinearModel final : public ElementModel {
   std::vector<int> order_, position_;
   std::vector<SpencerElement> elements_;      // what the pass reads
   std::vector<Tet> tets_;                     // nodes
-  std::vector<int> region_;                   // region
-  std::vector<double> beta_;                  // stiffness damping, s
+  std::vector<int> region_;                   // region (the damping is in lanes_)
   std::vector<SpencerConstants> region_law_;  // per region
   std::vector<ElementLanes> lanes_;           // what the pass reads, by blocks of eight positions
   // Node blocks of the free DOFs (for the warp preconditioner): node of each block, and
