@@ -508,12 +508,15 @@ void SparseSystem::order_runs(const TetMesh& mesh, LoopSchedule schedule, std::v
   const int n = mesh.num_nodes();
   const int ne = static_cast<int>(tets_.size());
   const int num_chunks = (ne + chunk_size_ - 1) / chunk_size_;
-  const int num_runs = kRuns;
+  // kRuns runs (fewer on a mesh of fewer chunks) whose lengths differ by one chunk at
+  // most: of equal length but the last, the two colours of 180 chunks held 8 and 7 runs
+  // of 12 chunks, and on two threads one thread waited for a whole run in the second.
+  const int num_runs = std::min(kRuns, num_chunks);
   const int run_chunks = std::max(1, (num_chunks + num_runs - 1) / num_runs);
   const bool large = static_cast<long>(ne) >= static_cast<long>(kRunMinElements) * num_runs;
   if (!(schedule == LoopSchedule::runs || (large && run_chunks > 1))) return;
   const auto chunk_order = order_;
-  colour_chunks(n, run_chunks);
+  colour_chunks(n, num_runs);
   if (colour_chunks_.size() > 2) {
     const auto run_order = order_;
     const size_t run_colours = colour_chunks_.size();
@@ -526,12 +529,13 @@ void SparseSystem::order_runs(const TetMesh& mesh, LoopSchedule schedule, std::v
     for (int e = 0; e < ne; ++e) order_[static_cast<size_t>(e)] = e;
     stable_sort_by_key(order_, 0, ne, along);
     const std::vector<std::uint64_t>& key = morton_keys(mesh, tets_, morton);
-    const int run_elements = run_chunks * chunk_size_;
-    for (int begin = 0; begin < ne; begin += run_elements) stable_sort_by_key(order_, begin, std::min(begin + run_elements, ne), key);
-    colour_chunks(n, run_chunks);
+    for (int u = 0; u < num_runs; ++u)
+      stable_sort_by_key(order_, std::min(unit_first_chunk(u, num_runs, num_chunks) * chunk_size_, ne),
+                         std::min(unit_first_chunk(u + 1, num_runs, num_chunks) * chunk_size_, ne), key);
+    colour_chunks(n, num_runs);
     if (colour_chunks_.size() >= run_colours) {
       order_ = run_order;
-      colour_chunks(n, run_chunks);
+      colour_chunks(n, num_runs);
     }
   }
   if (schedule == LoopSchedule::automatic && colour_chunks_.size() > static_cast<size_t>(kRunMaxColours)) {  // chunks after all
@@ -783,20 +787,21 @@ double SparseSystem::block_product(const Eigen::VectorXd& x, Eigen::VectorXd& y,
   return x.dot(y);
 }
 
-void SparseSystem::colour_chunks(int n, int run_chunks) {
-  // Greedy, unit by unit (a unit is run_chunks consecutive chunks of the order): a unit
-  // takes the lowest colour not used by any unit sharing one of its nodes. Units that find
-  // none of 64 colours run one at a time, each its own colour.
+void SparseSystem::colour_chunks(int n, int num_units) {
+  // Greedy, unit by unit (a unit is a range of consecutive chunks of the order,
+  // unit_first_chunk): a unit takes the lowest colour not used by any unit sharing one of
+  // its nodes. Units that find none of 64 colours run one at a time, each its own colour.
   const int ne = static_cast<int>(tets_.size());
   const int num_chunks = (ne + chunk_size_ - 1) / chunk_size_;
-  const int num_units = (num_chunks + run_chunks - 1) / run_chunks;
-  run_chunks_ = run_chunks;
+  if (num_units <= 0 || num_units > num_chunks) num_units = num_chunks;
+  run_chunks_ = (num_chunks + num_units - 1) / num_units;
+  const auto first_chunk = [&](int u) { return unit_first_chunk(u, num_units, num_chunks); };
   std::vector<std::uint64_t> node_colours(static_cast<size_t>(n), 0);
   std::vector<int> unit_colour(static_cast<size_t>(num_units));
   bool serial_bucket_used = false;
   for (int u = 0; u < num_units; ++u) {
     std::uint64_t used = 0;
-    const int begin = u * run_chunks * chunk_size_, end = std::min((u + 1) * run_chunks * chunk_size_, ne);
+    const int begin = first_chunk(u) * chunk_size_, end = std::min(first_chunk(u + 1) * chunk_size_, ne);
     for (int k = begin; k < end; ++k)
       for (int v : tets_[static_cast<size_t>(order_[static_cast<size_t>(k)])]) used |= node_colours[static_cast<size_t>(v)];
     int colour = 0;
@@ -816,7 +821,7 @@ void SparseSystem::colour_chunks(int n, int run_chunks) {
   colour_chunks_.assign(static_cast<size_t>(num_colours), {});
   colour_tasks_.assign(static_cast<size_t>(num_colours), {0});
   auto add_unit = [&](size_t colour, int u) {
-    for (int ch = u * run_chunks; ch < std::min((u + 1) * run_chunks, num_chunks); ++ch) colour_chunks_[colour].push_back(ch);
+    for (int ch = first_chunk(u); ch < first_chunk(u + 1); ++ch) colour_chunks_[colour].push_back(ch);
     colour_tasks_[colour].push_back(static_cast<int>(colour_chunks_[colour].size()));
   };
   for (int u = 0; u < num_units; ++u)

@@ -288,9 +288,14 @@ class SparseSystem {
   void order_runs(const TetMesh& mesh, LoopSchedule schedule, std::vector<std::uint64_t>& morton);
   /// Position of entry (r, col) in the values. @throws std::logic_error if not in the pattern.
   int value_index(int r, int col) const;
-  /// Greedy colouring of units of `run_chunks` consecutive chunks (a unit is one task);
-  /// fills colour_chunks_ and colour_tasks_.
-  void colour_chunks(int num_nodes, int run_chunks = 1);
+  /// Greedy colouring of `num_units` units of consecutive chunks (a unit is one task; 0:
+  /// one unit per chunk); fills colour_chunks_ and colour_tasks_.
+  void colour_chunks(int num_nodes, int num_units = 0);
+  /// First chunk of unit u of `num_units` over `num_chunks` chunks (u = num_units: the end):
+  /// units whose lengths differ by one chunk at most.
+  static int unit_first_chunk(int u, int num_units, int num_chunks) {
+    return static_cast<int>(static_cast<long>(u) * num_chunks / num_units);
+  }
   void plan_zeroing(int num_nodes);
   // Value ranges [first, second) that chunk c zeroes before its elements:
   // zero_ranges_[zero_begin_[c] .. zero_begin_[c + 1]).
@@ -325,7 +330,7 @@ class SparseSystem {
   std::vector<std::vector<int>> colour_chunks_;  // chunk ids per colour, task by task
   // Per colour: task t walks colour_chunks_[c][colour_tasks_[c][t] .. colour_tasks_[c][t + 1]).
   std::vector<std::vector<int>> colour_tasks_;
-  int run_chunks_ = 1;  // chunks per task (1: LoopSchedule::chunks)
+  int run_chunks_ = 1;  // most chunks per task (1: LoopSchedule::chunks)
 };
 
 template <class ChunkKernel>
