@@ -16,7 +16,15 @@ void SolutionRecycler::remember(const Eigen::VectorXd& x) {
     history_.setZero(x.size(), m);
     count_ = next_ = 0;
   }
-  history_.col(next_) = x / n;
+  // Rows on the threads for a long vector: the column is strided (one cache line a row).
+  const int rows = static_cast<int>(x.size());
+  const double inv = 1.0 / n;
+  parallel_for(
+      kProjectionParts,
+      [&](int p) {
+        for (int r = rows * p / kProjectionParts; r < rows * (p + 1) / kProjectionParts; ++r) history_(r, next_) = x[r] * inv;
+      },
+      rows > kParallelRows);
   next_ = (next_ + 1) % m;
   count_ = std::min(count_ + 1, m);
 }
@@ -119,8 +127,17 @@ const Eigen::VectorXd* SolutionRecycler::project(const SparseMatrix& A, const Ei
   SmallVector y(m);
   y.noalias() = eig_.eigenvectors() * c;
   if (!y.allFinite()) return nullptr;
-  x.noalias() = W * y;
-  guess_Ax_.noalias() = AW_.leftCols(m) * y;
+  // x = W y and its product A x = (A W) y in one pass over the rows.
+  x.resize(rows);
+  guess_Ax_.resize(rows);
+  const auto combine = [&](int p) {
+    for (int r = static_cast<int>(static_cast<long>(rows) * p / kProjectionParts);
+         r < static_cast<int>(static_cast<long>(rows) * (p + 1) / kProjectionParts); ++r) {
+      x[r] = W.row(r).dot(y);
+      guess_Ax_[r] = AW_.row(r).head(m).dot(y);
+    }
+  };
+  parallel_for(kProjectionParts, combine, A.nonZeros() > 20000);
   return &guess_Ax_;
 }
 
