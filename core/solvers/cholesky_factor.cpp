@@ -51,7 +51,20 @@ CholeskyFactor::CholeskyFactor() {
 #endif
 }
 
+namespace {
+
+// Whether P (a factor's last matrix) has A's pattern.
+bool same_pattern(const Eigen::SparseMatrix<double, Eigen::ColMajor, int>& P, const SparseMatrix& A) {
+  return P.rows() == A.rows() && P.nonZeros() == A.nonZeros() && P.isCompressed() && A.isCompressed() &&
+         std::equal(A.outerIndexPtr(), A.outerIndexPtr() + A.rows() + 1, P.outerIndexPtr()) &&
+         std::equal(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros(), P.innerIndexPtr());
+}
+
+}  // namespace
+
 bool CholeskyFactor::factorize(const SparseMatrix& A) {
+  // The analysis is redone for another pattern, even of the same size.
+  if (analysed_ && !same_pattern(Acol_, A)) analysed_ = false;
   Acol_ = Eigen::Map<const Eigen::SparseMatrix<double, Eigen::ColMajor, int>>(
       A.rows(), A.cols(), A.nonZeros(), A.outerIndexPtr(), A.innerIndexPtr(), A.valuePtr());
   within_engine_threads([&] {
@@ -69,6 +82,23 @@ bool CholeskyFactor::factorize(const SparseMatrix& A) {
   const FactorInfo i = info();
   cost_in_applications_ = i.nonzeros > 0 ? i.flops / (4 * i.nonzeros) : 0;
   return ok_;
+}
+
+void CholeskyFactor::adopt_analysis(const CholeskyFactor& other, const SparseMatrix& A) {
+#ifdef FIBERFEM_HAVE_CHOLMOD
+  if ((analysed_ && same_pattern(Acol_, A)) || !other.analysed_ || other.rows_ != A.rows() || !other.llt_.factor() ||
+      !same_pattern(other.Acol_, A))  // other's last matrix: the pattern it was analysed for
+    return;
+  llt_.adopt_analysis(other.llt_);
+  Acol_ = other.Acol_;  // the pattern of the analysis (factorize() takes A's values)
+  if (llt_.factor()) {
+    analysed_ = true;
+    rows_ = other.rows_;
+  }
+#else
+  (void)other;
+  (void)A;
+#endif
 }
 
 FactorInfo CholeskyFactor::info() const {

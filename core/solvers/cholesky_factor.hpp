@@ -19,6 +19,21 @@ template <class Matrix>
 class OpenCholmodSupernodalLLT : public Eigen::CholmodSupernodalLLT<Matrix, Eigen::Lower> {
  public:
   const cholmod_factor* factor() const { return this->m_cholmodFactor; }
+  /// Takes a copy of `other`'s factor as this one's symbolic analysis (and its analysis
+  /// statistics), as analyzePattern() of the same pattern would make it.
+  void adopt_analysis(const OpenCholmodSupernodalLLT& other) {
+    cholmod_common& c = this->cholmod();
+    const cholmod_common& from = const_cast<OpenCholmodSupernodalLLT&>(other).cholmod();
+    if (this->m_cholmodFactor) cholmod_free_factor(&this->m_cholmodFactor, &c);
+    this->m_cholmodFactor = cholmod_copy_factor(other.m_cholmodFactor, &c);
+    c.lnz = from.lnz;
+    c.fl = from.fl;
+    c.selected = from.selected;
+    this->m_isInitialized = true;
+    this->m_info = this->m_cholmodFactor ? Eigen::Success : Eigen::NumericalIssue;
+    this->m_analysisIsOk = this->m_cholmodFactor != nullptr;
+    this->m_factorizationIsOk = false;
+  }
 };
 #endif
 
@@ -31,6 +46,10 @@ class CholeskyFactor {
   CholeskyFactor();
   /// Factorises A (the symbolic analysis once per pattern); false when A is not positive definite.
   bool factorize(const SparseMatrix& A);
+  /// Before this factor's first factorize(A): takes `other`'s symbolic analysis when it was
+  /// made for A's pattern (the fill-reducing ordering, AMD and METIS tried, is most of a
+  /// first factorisation's time on small systems). Nothing otherwise, or without CHOLMOD.
+  void adopt_analysis(const CholeskyFactor& other, const SparseMatrix& A);
   bool ok() const { return ok_; }
   /// What a factorisation costs in applications of the factor: its flops over 4 nnz(L)
   /// (one forward and one backward substitution, a multiply and an add per entry); set by

@@ -83,6 +83,10 @@ void LaggedFactors::start_beside(const SparseMatrix& A, FactorSlot& slot, const 
   b->matrix = A;
   b->left = left;
   b->made->at_factor = at;
+  // The analysis of another family's factor, when its pattern is this one's (taken here,
+  // on the stepping thread, while no solve reads that factor).
+  for (const auto& sl : slots_)
+    if (sl.get() != &slot) b->made->factor.adopt_analysis(sl->factor, b->matrix);
   const bool single = s_.single_precision_preconditioner;
   BesideFactor* job = b.get();
   // One thread: the steps keep the others (OpenMP's count is per thread; BLAS runs on one).
@@ -115,6 +119,10 @@ void LaggedFactors::refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats
     build_amg(A, *positions_, slot);
   } else {
     slot.factor.set_single_precision(s_.single_precision_preconditioner);
+    // Every family's matrix has the system's pattern: a slot's first factorisation takes
+    // the analysis another slot made (the same ordering, so the same factor).
+    for (const auto& sl : slots_)
+      if (sl.get() != &slot) slot.factor.adopt_analysis(sl->factor, A);
     slot.factor.factorize(A);
   }
   slot.at_factor = warp_.current;
@@ -218,6 +226,7 @@ void LaggedFactors::load(const LinearSolverState& st, const SparseMatrix& patter
         build_amg(A, f.setup_positions, *sl);  // (sizes checked by check(), before anything changed)
       } else {
         sl->factor.set_single_precision(s_.single_precision_preconditioner);
+        for (const auto& prev : slots_) sl->factor.adopt_analysis(prev->factor, A);
         sl->factor.factorize(A);
       }
     }

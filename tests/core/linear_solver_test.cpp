@@ -211,6 +211,57 @@ TEST(LinearSolver, CholeskyPcgKeepsOneFactorPerMatrixKey) {
   EXPECT_GT(iterations[1], 2 * iterations[0]) << "keyed " << iterations[0] << ", unkeyed " << iterations[1];
 }
 
+// The factors of a solver's matrix families (keys) share one symbolic analysis where their
+// matrices have one pattern, and each is still its own matrix's exact factor: the solve of
+// the second family is the same, bit for bit, as a solver's that factorised that matrix
+// alone (the ordering depends on the pattern only). A family whose matrix has another
+// pattern of the same size (one more pair of entries) is analysed afresh and solved exactly.
+TEST(LinearSolver, CholeskyPcgFamiliesShareTheAnalysisOfOnePattern) {
+  System S = make_system();
+  const core::SparseMatrix A1 = S.sys.matrix();
+  const core::SparseMatrix A2 = assemble(S.sys, S.mesh, 0.25);  // like h doubled
+  std::vector<Eigen::Triplet<double>> t;
+  for (int r = 0; r < A2.outerSize(); ++r)
+    for (core::SparseMatrix::InnerIterator it(A2, r); it; ++it) t.emplace_back(r, static_cast<int>(it.col()), it.value());
+  const int n = static_cast<int>(A2.rows());
+  ASSERT_EQ(A2.coeff(0, n - 1), 0.0) << "the corner must lie outside the pattern";
+  const double corner = 1e-3 * A2.coeff(0, 0);
+  t.emplace_back(0, n - 1, corner);
+  t.emplace_back(n - 1, 0, corner);
+  core::SparseMatrix B(n, n);
+  B.setFromTriplets(t.begin(), t.end());
+
+  core::SolverSettings s = pcg(core::PreconditionerKind::cholesky, 1e-9);
+  s.warm_start = false;  // every solve from zero: the same factor, the same iterates
+  auto solver = make(s, S.sys);
+  const auto solve = [&](core::LinearSolver& sv, double key, const core::SparseMatrix& A, Eigen::VectorXd& x) {
+    sv.set_matrix_key(key);
+    const core::SolveStats st = sv.solve(A, S.b, x);
+    EXPECT_TRUE(st.ok);
+    EXPECT_EQ(st.factorizations, 1);
+    EXPECT_LE(st.iterations, 2) << "an exact factor (key " << key << ")";
+    const Eigen::VectorXd ref = dense_solve(A, S.b);
+    EXPECT_LT((x - ref).norm(), 1e-8 * ref.norm());
+  };
+  Eigen::VectorXd x1, x2, x2_alone, xb;
+  solve(*solver, 1.0 / 60, A1, x1);
+  const core::FactorInfo first = solver->factor_info();
+  solve(*solver, 1.0 / 120, A2, x2);
+  const core::FactorInfo second = solver->factor_info();
+  auto alone = make(s, S.sys);
+  solve(*alone, 1.0 / 120, A2, x2_alone);
+  EXPECT_EQ(x2, x2_alone);
+  EXPECT_EQ(second.nonzeros, alone->factor_info().nonzeros);
+  EXPECT_EQ(second.nonzeros, first.nonzeros);
+  EXPECT_EQ(second.ordering, first.ordering);
+  // A third family (replacing a slot) of another pattern: the same as a solver's of B alone.
+  solve(*solver, 1.0 / 240, B, xb);
+  Eigen::VectorXd xb_alone;
+  auto alone_b = make(s, S.sys);
+  solve(*alone_b, 1.0 / 240, B, xb_alone);
+  EXPECT_EQ(xb, xb_alone);
+}
+
 // A solve that needs more than refresh_iterations marks the factor stale: the next solve
 // refactorises; and a solve that does not converge with the old factor refactorises and
 // solves again at once, reporting the iterations of both attempts.
