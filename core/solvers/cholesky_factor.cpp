@@ -86,9 +86,9 @@ bool CholeskyFactor::factorize(const SparseMatrix& A) {
 
 void CholeskyFactor::adopt_analysis(const CholeskyFactor& other, const SparseMatrix& A) {
 #ifdef FIBERFEM_HAVE_CHOLMOD
-  if ((analysed_ && same_pattern(Acol_, A)) || !other.analysed_ || other.rows_ != A.rows() || !other.llt_.factor() ||
-      !same_pattern(other.Acol_, A))  // other's last matrix: the pattern it was analysed for
-    return;
+  // Already analysed (for A's pattern or another: factorize() then analyses afresh), or
+  // other's analysis is of another pattern (its last matrix's).
+  if (analysed_ || !other.analysed_ || !other.llt_.factor() || !same_pattern(other.Acol_, A)) return;
   llt_.adopt_analysis(other.llt_);
   Acol_ = other.Acol_;  // the pattern of the analysis (factorize() takes A's values)
   if (llt_.factor()) {

@@ -83,10 +83,8 @@ void LaggedFactors::start_beside(const SparseMatrix& A, FactorSlot& slot, const 
   b->matrix = A;
   b->left = left;
   b->made->at_factor = at;
-  // The analysis of another family's factor, when its pattern is this one's (taken here,
-  // on the stepping thread, while no solve reads that factor).
-  for (const auto& sl : slots_)
-    if (sl.get() != &slot) b->made->factor.adopt_analysis(sl->factor, b->matrix);
+  // Taken here, on the stepping thread, while no solve reads the other factors.
+  adopt_analysis(b->made->factor, b->matrix);
   const bool single = s_.single_precision_preconditioner;
   BesideFactor* job = b.get();
   // One thread: the steps keep the others (OpenMP's count is per thread; BLAS runs on one).
@@ -96,6 +94,13 @@ void LaggedFactors::start_beside(const SparseMatrix& A, FactorSlot& slot, const 
     job->made->factor.factorize(job->matrix);
   });
   slot.beside = std::move(b);
+}
+
+// Every family's matrix has the system's pattern: a factor not analysed yet takes the
+// analysis of a slot's factor made for A's pattern (the same ordering, so the same factor).
+void LaggedFactors::adopt_analysis(CholeskyFactor& factor, const SparseMatrix& A) const {
+  for (const auto& sl : slots_)
+    if (&sl->factor != &factor) factor.adopt_analysis(sl->factor, A);
 }
 
 void LaggedFactors::retire(FactorSlot& slot) {
@@ -119,10 +124,7 @@ void LaggedFactors::refactor(const SparseMatrix& A, FactorSlot& slot, SolveStats
     build_amg(A, *positions_, slot);
   } else {
     slot.factor.set_single_precision(s_.single_precision_preconditioner);
-    // Every family's matrix has the system's pattern: a slot's first factorisation takes
-    // the analysis another slot made (the same ordering, so the same factor).
-    for (const auto& sl : slots_)
-      if (sl.get() != &slot) slot.factor.adopt_analysis(sl->factor, A);
+    adopt_analysis(slot.factor, A);
     slot.factor.factorize(A);
   }
   slot.at_factor = warp_.current;
@@ -226,7 +228,7 @@ void LaggedFactors::load(const LinearSolverState& st, const SparseMatrix& patter
         build_amg(A, f.setup_positions, *sl);  // (sizes checked by check(), before anything changed)
       } else {
         sl->factor.set_single_precision(s_.single_precision_preconditioner);
-        for (const auto& prev : slots_) sl->factor.adopt_analysis(prev->factor, A);
+        adopt_analysis(sl->factor, A);
         sl->factor.factorize(A);
       }
     }

@@ -85,6 +85,8 @@ class LaggedFactors {
   void build_amg(const SparseMatrix& A, const Eigen::VectorXd& positions, FactorSlot& slot);
   void start_beside(const SparseMatrix& A, FactorSlot& slot, const std::vector<Mat3>& at, double left);
   static double beside_iterations(const SparseMatrix& A);
+  /// `factor`, before its first factorisation of A, takes another slot's analysis of A's pattern.
+  void adopt_analysis(CholeskyFactor& factor, const SparseMatrix& A) const;
   /// A factor made beside the steps that is no longer wanted keeps its thread until done.
   void retire(FactorSlot& slot);
   void adopt_beside(std::unique_ptr<FactorSlot>& sl, SolveStats& st);

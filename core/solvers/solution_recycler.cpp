@@ -22,7 +22,7 @@ void SolutionRecycler::remember(const Eigen::VectorXd& x) {
   parallel_for(
       kProjectionParts,
       [&](int p) {
-        for (int r = rows * p / kProjectionParts; r < rows * (p + 1) / kProjectionParts; ++r) history_(r, next_) = x[r] * inv;
+        for (int r = part_begin(rows, p); r < part_begin(rows, p + 1); ++r) history_(r, next_) = x[r] * inv;
       },
       rows > kParallelRows);
   next_ = (next_ + 1) % m;
@@ -106,8 +106,7 @@ const Eigen::VectorXd* SolutionRecycler::project(const SparseMatrix& A, const Ei
       SmallVector& wb = part_wb_[static_cast<size_t>(p)];
       g.setZero(m, m);
       wb.setZero(m);
-      accumulate(static_cast<int>(static_cast<long>(rows) * p / kProjectionParts),
-                 static_cast<int>(static_cast<long>(rows) * (p + 1) / kProjectionParts), g, wb);
+      accumulate(part_begin(rows, p), part_begin(rows, p + 1), g, wb);
     });
     for (int p = 0; p < kProjectionParts; ++p) {
       G_ += part_g_[static_cast<size_t>(p)];
@@ -131,8 +130,7 @@ const Eigen::VectorXd* SolutionRecycler::project(const SparseMatrix& A, const Ei
   x.resize(rows);
   guess_Ax_.resize(rows);
   const auto combine = [&](int p) {
-    for (int r = static_cast<int>(static_cast<long>(rows) * p / kProjectionParts);
-         r < static_cast<int>(static_cast<long>(rows) * (p + 1) / kProjectionParts); ++r) {
+    for (int r = part_begin(rows, p); r < part_begin(rows, p + 1); ++r) {
       x[r] = W.row(r).dot(y);
       guess_Ax_[r] = AW_.row(r).head(m).dot(y);
     }

@@ -50,6 +50,8 @@ class SolutionRecycler {
   // The projection's sums per part of the rows (fixed parts: the same bits on any thread count).
   static constexpr int kProjectionParts = 8;
   static constexpr int kParallelRows = 2000;  // remember()'s strided copy on the threads from this many rows
+  /// First row of part p of kProjectionParts over `rows` rows (p = kProjectionParts: the end).
+  static int part_begin(int rows, int p) { return static_cast<int>(static_cast<long>(rows) * p / kProjectionParts); }
   std::array<SmallMatrix, kProjectionParts> part_g_;
   std::array<SmallVector, kProjectionParts> part_wb_;
   // A W, row by row, from the projection's pass, and A x0 = (A W) y for its guess: PCG's
